@@ -1,0 +1,39 @@
+# Two commands for a user: `make demo` and `make test`. Both install what is missing first.
+SHELL := /bin/bash
+ROOT := $(CURDIR)
+RUN := source $(ROOT)/env.sh &&
+PYTEST_ARGS ?=
+
+.PHONY: setup demo test unit integration lint bench shell dem-tables clean
+
+setup:
+	@scripts/setup.sh
+
+demo: setup
+	@$(RUN) rosrun ow_lander mission
+
+test: setup lint
+	@$(RUN) python -m pytest -n 2 tests $(PYTEST_ARGS)
+
+unit: setup
+	@$(RUN) python -m pytest -n 2 tests/unit $(PYTEST_ARGS)
+
+integration: setup
+	@$(RUN) python -m pytest -n 2 tests/integration $(PYTEST_ARGS)
+
+lint: setup
+	@$(RUN) ruff check src tests bench scripts && ruff format --check src tests bench scripts \
+	  && mypy
+
+bench: setup
+	@$(RUN) for b in bench/*.py; do python $$b || exit 1; done
+
+# An interactive shell with the workspace environment (venv, devel space, ROS_HOSTNAME, ROS_HOME).
+shell: setup
+	@bash --rcfile <(echo 'source ~/.bashrc 2>/dev/null; source $(ROOT)/env.sh; PS1="(ow) $$PS1"')
+
+dem-tables: setup
+	@$(RUN) python -m ow_dem_bridge.make_tables
+
+clean:
+	rm -rf build devel .ros .pytest_cache .mypy_cache .ruff_cache

@@ -1,0 +1,68 @@
+#!/usr/bin/env bash
+# Install what this workspace needs and build it. Idempotent: each step checks first and does
+# nothing when it is already done, so a second run takes about a second.
+#
+#   scripts/setup.sh            # apt packages (root, or sudo), .venv with pinned wheels, catkin_make
+#   OW_SKIP_YADE=1 scripts/setup.sh   # leave out the optional DEM engine (YADE, ~170 packages)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$PWD
+
+apt_packages=(
+  ros-core catkin ros-message-generation ros-message-runtime rosbash
+  python3-rospy python3-rosservice python3-rostest python3-rosbag
+  python3-tf2-ros python3-tf2-geometry-msgs
+  python3-std-msgs python3-std-srvs python3-geometry-msgs python3-sensor-msgs
+  python3-visualization-msgs ros-trajectory-msgs ros-sensor-msgs libsensor-msgs-dev
+  python3-genpy python3-genmsg python3-venv python3-pip g++ make cmake
+)
+[ "${OW_SKIP_YADE:-0}" = 1 ] || apt_packages+=(yade)
+
+missing=()
+for p in "${apt_packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing ${#missing[@]} Debian packages: ${missing[*]}"
+  sudo=""
+  if [ "$(id -u)" != 0 ]; then
+    command -v sudo >/dev/null || { echo "setup: need root or sudo to install: ${missing[*]}" >&2; exit 1; }
+    sudo=sudo
+  fi
+  export DEBIAN_FRONTEND=noninteractive
+  $sudo apt-get update -q
+  if ! $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"; then
+    # YADE is optional (DEM table generation); everything else is not.
+    if [[ " ${missing[*]} " == *" yade "* ]]; then
+      echo "setup: installing without yade (DEM table generation and its smoke test will be skipped)" >&2
+      missing=("${missing[@]/yade}")
+      $sudo apt-get install -y -q --no-install-recommends ${missing[@]}
+    else
+      exit 1
+    fi
+  fi
+fi
+
+# The venv must come from Debian's python (the one with rospy), never the python3 on PATH.
+if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c 'import rospy' 2>/dev/null; then
+  rm -rf .venv
+  /usr/bin/python3 -m venv --system-site-packages .venv
+fi
+if ! cmp -s requirements.txt .venv/.requirements.installed; then
+  echo "setup: installing pinned Python wheels into .venv"
+  .venv/bin/pip install -q --disable-pip-version-check -r requirements.txt
+  cp requirements.txt .venv/.requirements.installed
+fi
+
+# catkin_make only when a build input changed since the last build.
+stamp=build/.ow_build_stamp
+if [ ! -f devel/setup.bash ] || [ ! -f "$stamp" ] || [ -n "$(find src -newer "$stamp" \
+     \( -name package.xml -o -name CMakeLists.txt -o -name setup.py -o -name '*.msg' -o -name '*.srv' \
+        -o -path '*/nodes/*' \) -print -quit)" ]; then
+  echo "setup: catkin_make"
+  # shellcheck disable=SC1091
+  source .venv/bin/activate
+  catkin_make -DPYTHON_EXECUTABLE="$root/.venv/bin/python" -DCMAKE_BUILD_TYPE=Release >build.log 2>&1 \
+    || { tail -40 build.log >&2; echo "setup: catkin_make failed, full log in build.log" >&2; exit 1; }
+  touch "$stamp"
+fi
