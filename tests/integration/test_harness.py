@@ -35,7 +35,10 @@ def test_node_started_with_rosrun_offers_its_service_and_is_stopped(ros_master):
 def test_private_params_are_set_before_start_and_removed_after(ros_master):
     stack = RosStack(ros_master)
     stack.start_node(
-        "rosout", "rosout", name="harness_params", params={"rate_hz": 5.0},
+        "rosout",
+        "rosout",
+        name="harness_params",
+        params={"rate_hz": 5.0},
         wait_for_services=["/harness_params/get_loggers"],
     )
     assert ros_master.call("getParam", "/harness_params/rate_hz") == 5.0

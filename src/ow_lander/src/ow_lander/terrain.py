@@ -1,4 +1,4 @@
-"""Terrain height maps in base_link, shared by the planner, the collision checker and the simulation.
+"""Terrain height maps in base_link, shared by planner, collision checker and simulation.
 
 A :class:`HeightMap` is a regular grid of terrain heights z(x, y) in ``base_link`` (metres). Cell
 (r, c) has its centre at ``(origin_x + c * resolution, origin_y + r * resolution)``; heights between
@@ -54,14 +54,13 @@ class HeightMap:
     ) -> HeightMap:
         """A flat terrain at height ``z`` (m) around the lander, ``half_extent`` m each way."""
         n = round(2 * half_extent / resolution) + 1
-        return cls(
-            np.full((n, n), float(z)), resolution, centre_x - half_extent, -half_extent
-        )
+        return cls(np.full((n, n), float(z)), resolution, centre_x - half_extent, -half_extent)
 
     @property
     def shape(self) -> tuple[int, int]:
         """(rows, cols) of the grid."""
-        return self.heights.shape  # type: ignore[return-value]
+        rows, cols = self.heights.shape
+        return int(rows), int(cols)
 
     @property
     def x_max(self) -> float:
@@ -84,22 +83,24 @@ class HeightMap:
             m, terrain z at each point, same shape as x.
         """
         rows, cols = self.shape
-        fc = np.clip((np.asarray(x, dtype=np.float64) - self.origin_x) / self.resolution, 0, cols - 1)
-        fr = np.clip((np.asarray(y, dtype=np.float64) - self.origin_y) / self.resolution, 0, rows - 1)
+        fc = np.clip(
+            (np.asarray(x, dtype=np.float64) - self.origin_x) / self.resolution, 0, cols - 1
+        )
+        fr = np.clip(
+            (np.asarray(y, dtype=np.float64) - self.origin_y) / self.resolution, 0, rows - 1
+        )
         c0 = np.minimum(np.floor(fc).astype(np.intp), cols - 2)
         r0 = np.minimum(np.floor(fr).astype(np.intp), rows - 2)
         tc = fc - c0
         tr = fr - r0
         h = self.heights
-        return (
-            (1 - tr) * ((1 - tc) * h[r0, c0] + tc * h[r0, c0 + 1])
-            + tr * ((1 - tc) * h[r0 + 1, c0] + tc * h[r0 + 1, c0 + 1])
+        return (1 - tr) * ((1 - tc) * h[r0, c0] + tc * h[r0, c0 + 1]) + tr * (
+            (1 - tc) * h[r0 + 1, c0] + tc * h[r0 + 1, c0 + 1]
         )
 
     def cell_centres(self) -> tuple[FloatArray, FloatArray]:
         """(xs, ys): m, the cell-centre coordinates along x (cols,) and along y (rows,)."""
         rows, cols = self.shape
-        return (
-            self.origin_x + self.resolution * np.arange(cols),
-            self.origin_y + self.resolution * np.arange(rows),
-        )
+        xs = self.origin_x + self.resolution * np.arange(cols, dtype=np.float64)
+        ys = self.origin_y + self.resolution * np.arange(rows, dtype=np.float64)
+        return xs, ys

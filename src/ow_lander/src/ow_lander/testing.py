@@ -68,10 +68,8 @@ def _stop_process_group(proc: subprocess.Popen[bytes], timeout_s: float = 10.0) 
     if proc.poll() is None:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGINT)
-        try:
+        with contextlib.suppress(subprocess.TimeoutExpired):
             proc.wait(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            pass
     # Children a node started (in its group) must not outlive it either.
     with contextlib.suppress(ProcessLookupError, PermissionError):
         os.killpg(proc.pid, signal.SIGKILL)
@@ -134,7 +132,8 @@ class RosMaster:
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             if self.proc.poll() is not None:
-                msg = f"rosmaster on port {self.port} exited: {_log_tail(self.log_dir / 'rosmaster.log')}"
+                tail = _log_tail(self.log_dir / "rosmaster.log")
+                msg = f"rosmaster on port {self.port} exited: {tail}"
                 raise HarnessError(msg)
             with contextlib.suppress(OSError):
                 self.call("getSystemState")
@@ -268,9 +267,12 @@ class RosStack:
         deadline = time.monotonic() + timeout_s
         while True:
             if not node.alive():
-                msg = f"node {node.name} exited with {node.proc.returncode}:\n{_log_tail(node.log_path)}"
+                tail = _log_tail(node.log_path)
+                msg = f"node {node.name} exited with {node.proc.returncode}:\n{tail}"
                 raise HarnessError(msg)
-            missing = (services - self.master.services()) | (topics - self.master.published_topics())
+            missing = (services - self.master.services()) | (
+                topics - self.master.published_topics()
+            )
             if not missing:
                 return
             if time.monotonic() > deadline:
