@@ -1,0 +1,6 @@
+"""Arm power and energy (the paper's eqs. 1-4), bag recording and per-operation analysis.
+
+The modules without ROS imports (:mod:`ow_power.model`, :mod:`ow_power.energy`,
+:mod:`ow_power.bagwriter`, :mod:`ow_power.analysis`) work in any Python with numpy, pandas and
+rosbags; the ``*_node`` modules are the thin rospy wrappers.
+"""

@@ -1,0 +1,209 @@
+"""A ROS 1 bag writer that splits a run into closed files, free of ROS (rosbags only).
+
+A run is a sequence of bags ``<prefix>_<start>_<index>.bag`` (``<start>`` the wall-clock start
+time, ``YYYY-mm-dd-HH-MM-SS``; ``<index>`` 0000, 0001, ...). The file being written is named
+``....bag.active`` and renamed to ``....bag`` once closed and indexed, so every ``.bag`` of a run
+is complete and readable by ``rosbag`` and rosbags, and a hard kill loses only the open file.
+A file is closed when its messages span ``split_duration_s`` of message time or hold
+``split_size_mb`` of data, and on :meth:`SplitBagWriter.close`. Nothing is ever overwritten: a run
+whose name is taken gets a ``-1``, ``-2``... suffix, and rosbags opens files exclusively.
+
+Messages arrive serialised (ROS 1 wire format) with their type, MD5 and full definition, exactly
+what a ROS subscriber's connection header gives, so any message type is recorded unchanged.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable
+from datetime import datetime
+from pathlib import Path
+
+from rosbags.interfaces import Connection
+from rosbags.rosbag1 import Writer, WriterError
+from rosbags.typesys.msg import normalize_msgtype
+
+from ow_power.errors import RecorderError
+
+#: Suffix of the bag being written; it becomes ``.bag`` when the file is closed.
+ACTIVE_SUFFIX = ".active"
+
+
+def run_name(directory: Path, prefix: str, start: datetime) -> str:
+    """A run name ``<prefix>_<YYYY-mm-dd-HH-MM-SS>[-n]`` no file in ``directory`` starts with.
+
+    Args:
+        directory: where the bags go.
+        prefix: first part of the name.
+        start: wall-clock start of the run.
+    """
+    base = f"{prefix}_{start:%Y-%m-%d-%H-%M-%S}"
+    name, n = base, 0
+    while any(directory.glob(f"{name}_*")):
+        n += 1
+        name = f"{base}-{n}"
+    return name
+
+
+class SplitBagWriter:
+    """Writes one run of serialised messages into consecutive, individually closed bag files.
+
+    Thread-safe: :meth:`write` and :meth:`close` take one lock, so subscriber threads may call
+    :meth:`write` while a signal handler's thread calls :meth:`close`.
+    """
+
+    def __init__(
+        self,
+        directory: Path | str,
+        prefix: str = "ow",
+        split_duration_s: float = 0.0,
+        split_size_mb: float = 0.0,
+        compression: str = "none",
+        start: datetime | None = None,
+        on_closed: Callable[[Path], None] | None = None,
+    ) -> None:
+        """Prepare a run; the first file is created by the first message.
+
+        Args:
+            directory: directory of the bags (created if missing).
+            prefix: first part of every file name.
+            split_duration_s: s of message time per file; 0 means no limit.
+            split_size_mb: MB (1e6 bytes) of serialised messages per file; 0 means no limit.
+            compression: ``none`` or ``bz2``.
+            start: wall-clock time in the run name (default: now).
+            on_closed: called with the path of every bag once it is closed and renamed.
+
+        Raises:
+            RecorderError: the directory cannot be created, or the compression is unknown.
+        """
+        self.directory = Path(directory)
+        try:
+            self.directory.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            msg = f"cannot create the bag directory {self.directory}: {exc}"
+            raise RecorderError(msg) from exc
+        if compression not in ("none", "bz2"):
+            msg = f"compression {compression!r} is not 'none' or 'bz2'"
+            raise RecorderError(msg)
+        self.name = run_name(self.directory, prefix, start or datetime.now())
+        self.split_duration_ns = int(split_duration_s * 1e9)
+        self.split_size_bytes = int(split_size_mb * 1e6)
+        self.compression = compression
+        self.on_closed = on_closed
+        #: Bags closed so far, in order.
+        self.closed_files: list[Path] = []
+        self._lock = threading.Lock()
+        self._index = 0
+        self._writer: Writer | None = None
+        self._connections: dict[tuple[str, str, str], Connection] = {}
+        self._file_start_ns = 0
+        self._file_bytes = 0
+        self._closed = False
+
+    @property
+    def active_path(self) -> Path | None:
+        """The file being written (``.bag.active``), or None between files."""
+        writer = self._writer
+        return None if writer is None else writer.path
+
+    def write(
+        self, topic: str, msgtype: str, md5sum: str, msgdef: str, stamp_ns: int, data: bytes
+    ) -> bool:
+        """Append one serialised message.
+
+        Args:
+            topic: topic name, e.g. ``/joint_states``.
+            msgtype: ROS 1 type, ``pkg/Type`` (``pkg/msg/Type`` accepted too).
+            md5sum: the type's MD5, as in the connection header.
+            msgdef: the full message definition, as in the connection header.
+            stamp_ns: ns, the bag time of the message (receipt time, simulation clock).
+            data: the message in ROS 1 wire format.
+
+        Returns:
+            False when the writer is closed already (the message is dropped), else True.
+
+        Raises:
+            RecorderError: a file cannot be created or written.
+        """
+        with self._lock:
+            if self._closed:
+                return False
+            if self._writer is not None and self._file_full(stamp_ns):
+                self._close_file()
+            if self._writer is None:
+                self._open_file(stamp_ns)
+            assert self._writer is not None
+            key = (topic, msgtype, md5sum)
+            connection = self._connections.get(key)
+            try:
+                if connection is None:
+                    connection = self._writer.add_connection(
+                        topic, normalize_msgtype(msgtype), msgdef=msgdef, md5sum=md5sum
+                    )
+                    self._connections[key] = connection
+                self._writer.write(connection, stamp_ns, data)
+            except (WriterError, OSError) as exc:
+                msg = f"cannot write {topic} to {self._writer.path}: {exc}"
+                raise RecorderError(msg) from exc
+            self._file_bytes += len(data)
+            return True
+
+    def close(self) -> list[Path]:
+        """Close and rename the open file; later :meth:`write` calls drop their message.
+
+        Returns:
+            Every bag of the run, in order.
+
+        Raises:
+            RecorderError: the open file cannot be closed or renamed (it stays as ``.active``).
+        """
+        with self._lock:
+            self._closed = True
+            if self._writer is not None:
+                self._close_file()
+            return list(self.closed_files)
+
+    def _file_full(self, stamp_ns: int) -> bool:
+        by_time = (
+            self.split_duration_ns > 0 and stamp_ns - self._file_start_ns >= self.split_duration_ns
+        )
+        by_size = self.split_size_bytes > 0 and self._file_bytes >= self.split_size_bytes
+        return by_time or by_size
+
+    def _open_file(self, stamp_ns: int) -> None:
+        final = self.directory / f"{self.name}_{self._index:04d}.bag"
+        active = final.with_name(final.name + ACTIVE_SUFFIX)
+        if final.exists():
+            msg = f"{final} exists already, not overwriting"
+            raise RecorderError(msg)
+        writer = Writer(active)
+        if self.compression == "bz2":
+            writer.set_compression(Writer.CompressionFormat.BZ2)
+        try:
+            writer.open()
+        except (WriterError, OSError) as exc:
+            msg = f"cannot create bag {active}: {exc}"
+            raise RecorderError(msg) from exc
+        self._writer = writer
+        self._connections = {}
+        self._file_start_ns = stamp_ns
+        self._file_bytes = 0
+        self._index += 1
+
+    def _close_file(self) -> None:
+        writer, self._writer = self._writer, None
+        assert writer is not None
+        active = writer.path
+        final = active.with_name(active.name.removesuffix(ACTIVE_SUFFIX))
+        try:
+            writer.close()
+            # link + unlink instead of rename: link fails rather than replace an existing bag.
+            os.link(active, final)
+            os.unlink(active)
+        except (WriterError, OSError) as exc:
+            msg = f"cannot close {active} as {final}: {exc}; the data stays in {active}"
+            raise RecorderError(msg) from exc
+        self.closed_files.append(final)
+        if self.on_closed is not None:
+            self.on_closed(final)

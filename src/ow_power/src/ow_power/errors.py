@@ -1,0 +1,21 @@
+"""Exceptions of the ow_power package. Each message names the bad value and what was expected."""
+
+
+class OwPowerError(Exception):
+    """Base class of every error raised by ow_power."""
+
+
+class ConfigError(OwPowerError):
+    """A configuration value is missing, unknown, of the wrong type or out of range."""
+
+
+class PowerError(OwPowerError):
+    """A joint state cannot be turned into power (missing joint, arrays of different lengths)."""
+
+
+class RecorderError(OwPowerError):
+    """A bag cannot be opened, written or closed without losing or overwriting data."""
+
+
+class AnalysisError(OwPowerError):
+    """Bags cannot be read or hold nothing to analyse."""

@@ -1,0 +1,77 @@
+"""The power node: eqs. 1-4 of the paper for every joint state (rospy wiring only)."""
+
+from __future__ import annotations
+
+import sys
+
+import rospy
+from sensor_msgs.msg import JointState
+
+from ow_msgs.msg import Power
+from ow_power.config import PowerConfig
+from ow_power.conversions import joint_state_fields, power_message
+from ow_power.errors import ConfigError, PowerError
+from ow_power.model import PowerIntegrator
+
+
+class PowerNode:
+    """Publishes the arm's power and cumulative energy for every joint state.
+
+    ROS API:
+        Subscribes:
+            ``joint_states`` (sensor_msgs/JointState): position rad, velocity rad/s,
+            effort = applied torque N m; joints matched by name.
+        Publishes:
+            ``power`` (ow_msgs/Power, queue 100): one message per usable joint state, stamped
+            with its stamp; energies accumulate from the node's start.
+        Parameters (private, read once; see :class:`~ow_power.config.PowerConfig`):
+            ``~auxiliary_power_w`` (float, W, default 43.0): P0.
+            ``~motor_efficiency`` (float in (0, 1], default 0.9).
+            ``~joints`` (list of str, default []: every joint of the message).
+            ``~max_dt_s`` (float, s, default 1.0): longer stamp gaps are not integrated.
+    """
+
+    def __init__(self, config: PowerConfig) -> None:
+        """Advertise ``power`` and subscribe to ``joint_states``."""
+        self._integrator = PowerIntegrator(config)
+        self._publisher = rospy.Publisher("power", Power, queue_size=100)
+        self._subscriber = rospy.Subscriber(
+            "joint_states", JointState, self._on_joint_states, queue_size=100
+        )
+
+    def _on_joint_states(self, msg: JointState) -> None:
+        stamp_s, names, velocity, effort = joint_state_fields(msg)
+        skipped = self._integrator.skipped_intervals
+        try:
+            sample = self._integrator.update(stamp_s, names, velocity, effort)
+        except PowerError as exc:
+            rospy.logwarn_throttle(5.0, f"power: joint state at {stamp_s:.3f} s skipped: {exc}")
+            return
+        if self._integrator.skipped_intervals > skipped:
+            rospy.logwarn_throttle(
+                5.0,
+                f"power: joint state at {stamp_s:.3f} s follows a gap longer than "
+                f"{self._integrator.config.max_dt_s} s or goes back in time; gap not integrated",
+            )
+        self._publisher.publish(power_message(sample, msg.header))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the power node until shutdown; 1 on a configuration error."""
+    rospy.init_node("power", argv=argv)
+    try:
+        config = PowerConfig.from_dict(rospy.get_param("~", {}))
+    except ConfigError as exc:
+        rospy.logfatal(f"power: {exc}")
+        return 1
+    PowerNode(config)
+    rospy.loginfo(
+        f"power: P0 {config.auxiliary_power_w} W, efficiency {config.motor_efficiency}, "
+        f"joints {list(config.joints) or 'all'}"
+    )
+    rospy.spin()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
