@@ -28,8 +28,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
-from rosbags.highlevel import AnyReader
-from rosbags.rosbag1 import ReaderError
+from rosbags.highlevel import AnyReader, AnyReaderError
 
 from ow_power.config import PowerConfig
 from ow_power.errors import AnalysisError, PowerError
@@ -143,6 +142,8 @@ def _read(bags: Sequence[Path], want_joint_states: bool) -> _BagContents:
     try:
         with AnyReader(list(bags)) as reader:
             connections = [c for c in reader.connections if c.topic in topics]
+            if not connections:  # an empty selection would mean every connection
+                return contents
             for connection, _, raw in reader.messages(connections=connections):
                 msg: Any = reader.deserialize(raw, connection.msgtype)
                 topic = connection.topic
@@ -175,7 +176,7 @@ def _read(bags: Sequence[Path], want_joint_states: bool) -> _BagContents:
                     )
                 elif msg.success:
                     contents.contacts_s.append(_stamp_s(msg))
-    except (ReaderError, OSError, ValueError, KeyError) as exc:
+    except (AnyReaderError, OSError, ValueError, KeyError) as exc:
         msg_text = f"cannot read {[str(b) for b in bags]}: {exc}"
         raise AnalysisError(msg_text) from exc
     return contents

@@ -1,0 +1,194 @@
+"""Split bag writing and per-operation analysis on synthetic runs, without ROS."""
+
+import json
+import subprocess
+from datetime import datetime
+
+import pandas as pd
+import pytest
+from rosbags.highlevel import AnyReader
+
+from ow_power.analysis import analyze, format_table, pair_operations, plot_power, write_summary
+from ow_power.bagwriter import SplitBagWriter
+from ow_power.config import PowerConfig
+from ow_power.errors import AnalysisError, RecorderError
+from ow_power.synthetic import BagMessages, Segment, write_run
+
+JOINTS = ("j_shou_yaw", "j_shou_pitch", "j_prox_pitch", "j_grinder")
+SEGMENTS = (
+    Segment("unstow", 3.0, {"j_shou_pitch": 0.1}, {"j_shou_pitch": 50.0}),  # 5 W
+    Segment(  # +2 W and -6 W: net -4 W, |.| 8 W
+        "guarded_move",
+        4.0,
+        {"j_shou_pitch": 0.1, "j_prox_pitch": -0.2},
+        {"j_shou_pitch": 20.0, "j_prox_pitch": 30.0},
+    ),
+    Segment("grind", 2.5, {"j_grinder": 0.1}, {"j_grinder": 1.0}),  # 0.1 W
+)
+START = datetime(2025, 1, 2, 3, 4, 5)
+
+
+def _run(tmp_path, split_duration_s=0.0, with_power=True, compression="none"):
+    writer = SplitBagWriter(
+        tmp_path, split_duration_s=split_duration_s, start=START, compression=compression
+    )
+    write_run(writer, SEGMENTS, JOINTS, with_power=with_power)
+    return writer.close()
+
+
+def _count(bags, topic):
+    with AnyReader(bags) as reader:
+        return sum(1 for _ in reader.messages([c for c in reader.connections if c.topic == topic]))
+
+
+def test_a_run_is_split_into_closed_bags_that_rosbag_reads(tmp_path):
+    bags = _run(tmp_path, split_duration_s=4.0)
+    assert [b.name for b in bags] == [f"ow_2025-01-02-03-04-05_{i:04d}.bag" for i in range(3)]
+    assert not list(tmp_path.glob("*.active"))
+    # 9.5 s at 100 Hz: 951 joint states, none lost or doubled by the splits.
+    assert _count(bags, "/joint_states") == 951
+    info = subprocess.run(
+        ["rosbag", "info", str(bags[1])], capture_output=True, text=True, check=True
+    ).stdout
+    assert "ow_msgs/Power" in info and "sensor_msgs/JointState" in info
+    assert "duration:    4.0s" in info
+
+
+def test_bz2_bags_are_readable(tmp_path):
+    bags = _run(tmp_path, compression="bz2")
+    assert _count(bags, "/power") == 951
+
+
+def test_a_new_run_never_overwrites_an_old_one(tmp_path):
+    first = _run(tmp_path)
+    contents = first[0].read_bytes()
+    second = _run(tmp_path)
+    assert second[0].name == "ow_2025-01-02-03-04-05-1_0000.bag"
+    assert first[0].read_bytes() == contents
+
+
+def test_a_bag_in_the_way_is_an_error_not_an_overwrite(tmp_path):
+    writer = SplitBagWriter(tmp_path, start=START)
+    blocker = tmp_path / f"{writer.name}_0000.bag"
+    blocker.write_bytes(b"precious")
+    messages = BagMessages()
+    ros1_type, md5, msgdef, data = messages.serialize("std_msgs/msg/Float64", data=1.0)
+    with pytest.raises(RecorderError, match="exists already, not overwriting"):
+        writer.write("/x", ros1_type, md5, msgdef, 0, data)
+    assert blocker.read_bytes() == b"precious"
+
+
+def test_a_closed_writer_drops_late_messages(tmp_path):
+    writer = SplitBagWriter(tmp_path)
+    ros1_type, md5, msgdef, data = BagMessages().serialize("std_msgs/msg/Float64", data=1.0)
+    assert writer.write("/x", ros1_type, md5, msgdef, 1, data)
+    assert len(writer.close()) == 1
+    assert not writer.write("/x", ros1_type, md5, msgdef, 2, data)
+    assert writer.close() == writer.closed_files
+
+
+def test_split_by_size(tmp_path):
+    writer = SplitBagWriter(tmp_path, split_size_mb=0.001)  # 1000 bytes
+    ros1_type, md5, msgdef, data = BagMessages().serialize("std_msgs/msg/Float64", data=1.0)
+    for k in range(500):  # 8 bytes each
+        writer.write("/x", ros1_type, md5, msgdef, k, data)
+    bags = writer.close()
+    assert len(bags) == 4
+    assert _count(bags, "/x") == 500
+
+
+@pytest.mark.parametrize("with_power", [True, False])
+def test_energy_per_operation_matches_the_closed_form(tmp_path, with_power):
+    bags = _run(tmp_path, split_duration_s=4.0, with_power=with_power)
+    result = analyze([tmp_path])  # a directory stands for its bags
+    assert result.bags == bags
+    assert result.source == ("/power" if with_power else "/joint_states")
+    summary = result.summary.set_index("name")
+    expected = {  # (duration s, net W, |W|)
+        "unstow": (3.0, 5.0, 5.0),
+        "guarded_move": (4.0, -4.0, 8.0),
+        "grind": (2.5, 0.1, 0.1),
+    }
+    for name, (duration, net_w, abs_w) in expected.items():
+        row = summary.loc[name]
+        assert row["duration_s"] == pytest.approx(duration)
+        assert row["mechanical_energy_j"] == pytest.approx(net_w * duration)
+        assert row["mechanical_energy_abs_j"] == pytest.approx(abs_w * duration)
+        assert row["energy_wh"] == pytest.approx((net_w + 43.0) * duration / 3600.0)
+        assert row["peak_power_w"] == pytest.approx(abs_w)
+        assert row["mean_power_w"] == pytest.approx(abs_w)
+        assert row["success"] and row["complete"]
+    # The operations tile the run, so they add up to the whole.
+    assert result.total["mechanical_energy_j"] == pytest.approx(
+        summary["mechanical_energy_j"].sum()
+    )
+    assert result.total["duration_s"] == pytest.approx(9.5)
+
+
+def test_recompute_uses_the_given_p0(tmp_path):
+    _run(tmp_path)
+    result = analyze([tmp_path], recompute=True, config=PowerConfig(auxiliary_power_w=0.0))
+    assert result.source == "/joint_states"
+    assert result.total["energy_wh"] == pytest.approx(result.total["mechanical_energy_j"] / 3600)
+
+
+def test_outputs_table_csv_json_and_png(tmp_path):
+    _run(tmp_path)
+    result = analyze([tmp_path])
+    table = format_table(result)
+    assert "guarded_move" in table and "(whole run)" in table and "-16.00" in table
+    write_summary(result, tmp_path / "ops.csv", tmp_path / "ops.json")
+    csv = pd.read_csv(tmp_path / "ops.csv")
+    assert list(csv["name"]) == ["unstow", "guarded_move", "grind"]
+    document = json.loads((tmp_path / "ops.json").read_text())
+    assert document["operations"][2]["mechanical_energy_j"] == pytest.approx(0.25)
+    assert document["total"]["duration_s"] == pytest.approx(9.5)
+    plot_power(result, tmp_path / "power.png")
+    assert (tmp_path / "power.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_operations_cut_by_the_recording_are_kept_and_flagged():
+    markers = [
+        {
+            "stamp_s": 2.0,
+            "id": 7,
+            "name": "grind",
+            "event": 1,
+            "parameters": "{}",
+            "success": True,
+            "message": "ok",
+        },  # started before the recording
+        {
+            "stamp_s": 3.0,
+            "id": 8,
+            "name": "stow",
+            "event": 0,
+            "parameters": "{}",
+            "success": False,
+            "message": "",
+        },  # never ends
+    ]
+    ops = pair_operations(markers, t_first=1.0, t_last=9.0)
+    assert list(ops["name"]) == ["grind", "stow"]
+    assert list(ops["start_s"]) == [1.0, 3.0] and list(ops["end_s"]) == [2.0, 9.0]
+    assert not ops["complete"].any()
+    assert ops["success"].iloc[0] and ops["success"].iloc[1] is None
+
+
+def test_analysis_errors_name_the_bag(tmp_path):
+    with pytest.raises(AnalysisError, match=r"missing\.bag does not exist"):
+        analyze([tmp_path / "missing.bag"])
+    with pytest.raises(AnalysisError, match=r"no \.bag files"):
+        analyze([tmp_path])
+    (tmp_path / "junk.bag").write_bytes(b"not a bag")
+    with pytest.raises(AnalysisError, match=r"cannot read .*junk\.bag"):
+        analyze([tmp_path])
+
+
+def test_a_bag_without_power_or_joint_states_is_an_error(tmp_path):
+    writer = SplitBagWriter(tmp_path)
+    ros1_type, md5, msgdef, data = BagMessages().serialize("std_msgs/msg/Float64", data=1.0)
+    writer.write("/other", ros1_type, md5, msgdef, 1, data)
+    writer.close()
+    with pytest.raises(AnalysisError, match="no power samples"):
+        analyze([tmp_path])
