@@ -50,7 +50,10 @@ if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c 'import rospy' 2>/dev/null
 fi
 if ! cmp -s requirements.txt .venv/.requirements.installed; then
   echo "setup: installing pinned Python wheels into .venv"
-  .venv/bin/pip install -q --disable-pip-version-check -r requirements.txt
+  # (grep drops pip's warnings about this machine's extra, empty package indexes)
+  .venv/bin/pip install -q --disable-pip-version-check -r requirements.txt 2>&1 \
+    | { grep -v "is ignored: it is neither a file nor a directory" || true; }
+  [ "${PIPESTATUS[0]}" = 0 ] || { echo "setup: pip install failed" >&2; exit 1; }
   cp requirements.txt .venv/.requirements.installed
 fi
 

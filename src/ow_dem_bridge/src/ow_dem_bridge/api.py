@@ -40,7 +40,7 @@ class ToolState:
 
 @dataclass(frozen=True)
 class Wrench:
-    """Force and torque on a tool, expressed in the tool link frame, about the link's centre of mass.
+    """Force and torque on a tool in the tool link frame, about the link's centre of mass.
 
     Attributes:
         force: (3,) N.
