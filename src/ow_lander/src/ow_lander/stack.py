@@ -1,0 +1,300 @@
+"""Run a private ROS master and real nodes from Python: used by the mission and the test harness.
+
+:func:`private_master` starts ``rosmaster --core`` on a free port of 127.0.0.1; a
+:class:`RosStack` starts nodes on it with ``rosrun``, waits for their services or topics, and stops
+them (SIGINT, then SIGKILL of each node's whole process group). Each node's output goes to
+``<log_dir>/<name>.log``; a node that dies or never becomes ready raises :class:`HarnessError`
+with the end of that log.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import socket
+import subprocess
+import tempfile
+import time
+import xmlrpc.client
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+_HARNESS_CALLER = "/ow_testing_harness"
+
+
+class HarnessError(RuntimeError):
+    """A master or node could not be started, or a wait timed out."""
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that nothing listens on right now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def _stop_process_group(proc: subprocess.Popen[bytes], timeout_s: float = 10.0) -> None:
+    """SIGINT the process group (ROS nodes shut down cleanly on it), then SIGKILL it."""
+    if proc.poll() is None:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGINT)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            proc.wait(timeout=timeout_s)
+    # Children a node started (in its group) must not outlive it either.
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(proc.pid, signal.SIGKILL)
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        proc.wait(timeout=timeout_s)
+
+
+def _log_tail(path: Path, lines: int = 40) -> str:
+    try:
+        return "\n".join(path.read_text(errors="replace").splitlines()[-lines:])
+    except OSError:
+        return "(no log)"
+
+
+@dataclass
+class RosMaster:
+    """A private ``rosmaster --core`` on a free port of 127.0.0.1.
+
+    Attributes:
+        log_dir: directory for ROS_HOME, the master's and every node's logs.
+        port: TCP port of the master (chosen free when 0).
+    """
+
+    log_dir: Path
+    port: int = 0
+    proc: subprocess.Popen[bytes] | None = field(default=None, init=False)
+
+    @property
+    def uri(self) -> str:
+        """The master's XML-RPC URI."""
+        return f"http://127.0.0.1:{self.port}"
+
+    @property
+    def env(self) -> dict[str, str]:
+        """Environment for processes that should talk to this master."""
+        env = dict(os.environ)
+        env.update(
+            ROS_MASTER_URI=self.uri,
+            ROS_HOSTNAME="127.0.0.1",
+            ROS_HOME=str(self.log_dir),
+            ROS_LOG_DIR=str(self.log_dir / "log"),
+            PYTHONUNBUFFERED="1",
+        )
+        env.pop("ROS_IP", None)
+        return env
+
+    def start(self, timeout_s: float = 20.0) -> None:
+        """Start the master and wait until it answers."""
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        if not self.port:
+            self.port = free_port()
+        log = (self.log_dir / "rosmaster.log").open("wb")
+        self.proc = subprocess.Popen(
+            ["rosmaster", "--core", "-p", str(self.port)],
+            env=self.env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
+                tail = _log_tail(self.log_dir / "rosmaster.log")
+                msg = f"rosmaster on port {self.port} exited: {tail}"
+                raise HarnessError(msg)
+            with contextlib.suppress(OSError):
+                self.call("getSystemState")
+                return
+            time.sleep(0.05)
+        self.stop()
+        msg = f"rosmaster on port {self.port} did not answer within {timeout_s} s"
+        raise HarnessError(msg)
+
+    def stop(self) -> None:
+        """Stop the master."""
+        if self.proc is not None:
+            _stop_process_group(self.proc)
+            self.proc = None
+
+    def call(self, method: str, *args: Any) -> Any:
+        """Call a master or parameter-server XML-RPC method; return its value, raise on failure."""
+        proxy = xmlrpc.client.ServerProxy(self.uri)
+        code, status, value = getattr(proxy, method)(_HARNESS_CALLER, *args)
+        if code != 1:
+            msg = f"master call {method}{args} failed: {status}"
+            raise HarnessError(msg)
+        return value
+
+    def set_param(self, key: str, value: Any) -> None:
+        """Set a parameter on the master (dicts become namespaces)."""
+        self.call("setParam", key, value)
+
+    def delete_param(self, key: str) -> None:
+        """Delete a parameter if it exists."""
+        with contextlib.suppress(HarnessError):
+            self.call("deleteParam", key)
+
+    def services(self) -> set[str]:
+        """Names of all services registered right now."""
+        _, _, services = self.call("getSystemState")
+        return {name for name, _ in services}
+
+    def published_topics(self) -> set[str]:
+        """Names of all topics that have a publisher right now."""
+        publishers, _, _ = self.call("getSystemState")
+        return {name for name, _ in publishers}
+
+
+@dataclass
+class NodeProcess:
+    """A node started by :meth:`RosStack.start_node`."""
+
+    name: str
+    proc: subprocess.Popen[bytes]
+    log_path: Path
+
+    def alive(self) -> bool:
+        """True while the node's process runs."""
+        return self.proc.poll() is None
+
+    def log(self) -> str:
+        """Everything the node printed so far."""
+        return self.log_path.read_text(errors="replace")
+
+    def stop(self, timeout_s: float = 10.0) -> int | None:
+        """Stop the node (SIGINT, then SIGKILL of its process group); return its exit code."""
+        _stop_process_group(self.proc, timeout_s)
+        return self.proc.returncode
+
+    def signal(self, sig: int) -> None:
+        """Send a signal to the node's whole process group."""
+        os.killpg(self.proc.pid, sig)
+
+
+@dataclass
+class RosStack:
+    """Real nodes on a private master; stops them all in :meth:`shutdown`."""
+
+    master: RosMaster
+    nodes: list[NodeProcess] = field(default_factory=list)
+    params: list[str] = field(default_factory=list)
+
+    def start_node(
+        self,
+        package: str,
+        executable: str,
+        name: str | None = None,
+        args: Iterable[str] = (),
+        params: Mapping[str, Any] | None = None,
+        wait_for_services: Iterable[str] = (),
+        wait_for_topics: Iterable[str] = (),
+        timeout_s: float = 60.0,
+    ) -> NodeProcess:
+        """Start ``rosrun <package> <executable>`` and wait until it is ready.
+
+        Args:
+            package: ROS package, e.g. ``ow_sim_bullet``.
+            executable: node executable in the package, e.g. ``sim``.
+            name: node name (default: the executable's name); private parameters go to ``/<name>/``.
+            args: extra command-line arguments (e.g. remappings ``"a:=b"``).
+            params: private parameters, set on the master before the node starts.
+            wait_for_services: service names that must be offered before this returns.
+            wait_for_topics: topic names that must have a publisher before this returns.
+            timeout_s: s of wall time to wait for them.
+
+        Returns:
+            The running node.
+
+        Raises:
+            HarnessError: the node exited or was not ready in time (with the end of its log).
+        """
+        node_name = name or executable
+        for key, value in (params or {}).items():
+            full = f"/{node_name}/{key}"
+            self.master.set_param(full, value)
+            self.params.append(full)
+        log_path = self.master.log_dir / f"{node_name}.log"
+        log = log_path.open("wb")
+        proc = subprocess.Popen(
+            ["rosrun", package, executable, f"__name:={node_name}", *args],
+            env=self.master.env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+        )
+        node = NodeProcess(node_name, proc, log_path)
+        self.nodes.append(node)
+        self._wait(node, set(wait_for_services), set(wait_for_topics), timeout_s)
+        return node
+
+    def _wait(
+        self, node: NodeProcess, services: set[str], topics: set[str], timeout_s: float
+    ) -> None:
+        deadline = time.monotonic() + timeout_s
+        while True:
+            if not node.alive():
+                tail = _log_tail(node.log_path)
+                msg = f"node {node.name} exited with {node.proc.returncode}:\n{tail}"
+                raise HarnessError(msg)
+            missing = (services - self.master.services()) | (
+                topics - self.master.published_topics()
+            )
+            if not missing:
+                return
+            if time.monotonic() > deadline:
+                msg = (
+                    f"node {node.name} did not offer {sorted(missing)} within {timeout_s} s:\n"
+                    f"{_log_tail(node.log_path)}"
+                )
+                raise HarnessError(msg)
+            time.sleep(0.05)
+
+    def wait_for_service(self, service: str, timeout_s: float = 30.0) -> None:
+        """Wait until ``service`` is offered by any node."""
+        deadline = time.monotonic() + timeout_s
+        while service not in self.master.services():
+            if time.monotonic() > deadline:
+                msg = f"service {service} not offered within {timeout_s} s"
+                raise HarnessError(msg)
+            time.sleep(0.05)
+
+    def service(self, name: str, service_class: Any, timeout_s: float = 30.0) -> Any:
+        """A persistent-free ``rospy.ServiceProxy`` for ``name``, after waiting for the service."""
+        import rospy
+
+        self.wait_for_service(name, timeout_s)
+        return rospy.ServiceProxy(name, service_class)
+
+    def shutdown(self) -> None:
+        """Stop every node started here and delete the parameters set for them."""
+        for node in reversed(self.nodes):
+            node.stop()
+        self.nodes.clear()
+        for key in self.params:
+            self.master.delete_param(key)
+        self.params.clear()
+
+
+@contextlib.contextmanager
+def private_master(log_dir: Path | None = None, use_sim_time: bool = True) -> Iterator[RosMaster]:
+    """Start a private master for the duration of a ``with`` block (outside pytest, e.g. scripts).
+
+    Args:
+        log_dir: where ROS_HOME and the logs go (default: a new temporary directory).
+        use_sim_time: value of ``/use_sim_time`` on the new master.
+    """
+    directory = log_dir or Path(tempfile.mkdtemp(prefix="ow_ros_"))
+    master = RosMaster(directory)
+    master.start()
+    try:
+        master.set_param("/use_sim_time", use_sim_time)
+        yield master
+    finally:
+        master.stop()
