@@ -1,0 +1,91 @@
+"""Mission files: defaults, validation naming the key, the steps' requests, the report table."""
+
+from pathlib import Path
+
+import pytest
+
+from ow_lander.errors import ConfigError
+from ow_lander.mission import STEPS, MissionReport, PowerTrace, StepResult
+from ow_lander.mission_config import DEFAULT_MISSION_FILE, MissionConfig
+
+
+def test_the_shipped_mission_file_is_valid_and_complete():
+    config = MissionConfig.load(DEFAULT_MISSION_FILE)
+    assert config.trench_depth == pytest.approx(0.10)
+    # The file lists every key, so users see all they can change.
+    import yaml
+
+    assert set(yaml.safe_load(DEFAULT_MISSION_FILE.read_text())) == set(
+        MissionConfig.__dataclass_fields__
+    )
+
+
+@pytest.mark.parametrize(
+    ("raw", "match"),
+    [
+        ({"trench_depth": -0.1}, r"'trench_depth' = -0.1 is outside"),
+        ({"x": float("nan")}, "'x' must be a finite number"),
+        ({"x": "far"}, "'x' must be a finite number"),
+        ({"dig": "spiral"}, "'dig' must be 'linear' or 'circular'"),
+        ({"discard": [1, 2]}, "'discard' must be three finite numbers"),
+        ({"seed": -3}, "'seed' must be a non-negative integer"),
+        ({"parallel": "yes"}, "'parallel' must be true or false"),
+        ({"depth": 0.1}, r"unknown mission keys \['depth'\]"),
+        ({"node_params": {"sim": 3}}, "'node_params' must map node names"),
+    ],
+)
+def test_bad_mission_values_name_the_key(raw, match):
+    with pytest.raises(ConfigError, match=match):
+        MissionConfig.from_dict(raw)
+
+
+def test_missing_and_broken_files(tmp_path: Path):
+    with pytest.raises(ConfigError, match="cannot read mission file"):
+        MissionConfig.load(tmp_path / "none.yaml")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("x: [1,\n")
+    with pytest.raises(ConfigError, match="not valid YAML"):
+        MissionConfig.load(bad)
+
+
+def test_the_ground_found_feeds_the_later_steps():
+    config = MissionConfig(trench_depth=0.1, bottom_grind_depth=0.04)
+    ground = -0.2
+    requests = {s.name: s.request(config, ground) for s in STEPS}
+    assert [s.name for s in STEPS] == [
+        "unstow", "guarded_move", "grind", "dig_spoil", "discard_spoil",
+        "grind_bottom", "dig_sample", "deliver_sample", "stow",
+    ]  # fmt: skip
+    assert requests["grind"]["ground_position"] == ground
+    assert requests["dig_spoil"]["ground_position"] == ground
+    assert requests["dig_spoil"]["depth"] == pytest.approx(0.1)
+    assert requests["grind_bottom"]["ground_position"] == pytest.approx(-0.3)
+    assert requests["dig_sample"]["ground_position"] == pytest.approx(-0.3)
+    assert requests["dig_sample"]["depth"] == pytest.approx(0.04)
+    assert requests["discard_spoil"] == {"x": 1.3, "y": 0.9, "z": 0.4}
+    assert requests["deliver_sample"] == {"use_defaults": True}
+    assert requests["guarded_move"]["z"] == pytest.approx(config.expected_ground + 0.25)
+
+
+def test_power_trace_windows():
+    trace = PowerTrace()
+    # 10 W mechanical and 53 W total for 10 s, sampled at 1 Hz; 60 W peak at t = 5.
+    for t in range(11):
+        trace.add(float(t), 10.0 * t, 53.0 * t, 60.0 if t == 5 else 53.0)
+    mech, total, peak = trace.window(2.0, 7.5)
+    assert mech == pytest.approx(55.0)
+    assert total == pytest.approx(53.0 * 5.5)
+    assert peak == 60.0
+
+
+def test_report_table_says_what_failed(tmp_path: Path):
+    report = MissionReport(MissionConfig(), tmp_path)
+    report.steps.append(StepResult("unstow", "/arm/unstow", {}, success=True))
+    report.steps.append(
+        StepResult("guarded_move", "/arm/guarded_move", {}, message="no ground within 0.50 m")
+    )
+    report.error = "step guarded_move (/arm/guarded_move) failed: no ground within 0.50 m"
+    text = report.table()
+    assert "FAILED: no ground within 0.50 m" in text
+    assert "MISSION STOPPED" in text
+    assert not report.success
