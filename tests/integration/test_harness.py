@@ -48,8 +48,14 @@ def test_private_params_are_set_before_start_and_removed_after(ros_master):
 
 def test_a_node_that_dies_reports_its_log(ros_master):
     stack = RosStack(ros_master)
-    with pytest.raises(HarnessError, match="exited"):
-        stack.start_node("ow_lander", "mission", name="harness_dies", wait_for_services=["/never"])
+    with pytest.raises(HarnessError, match="(?s)exited.*cannot read mission file"):
+        stack.start_node(
+            "ow_lander",
+            "mission",
+            name="harness_dies",
+            args=["/nonexistent/mission.yaml"],
+            wait_for_services=["/never"],
+        )
     stack.shutdown()
 
 
