@@ -1,0 +1,869 @@
+"""The simulation itself: pybullet (DIRECT), joint PID control, terrain contact and carving.
+
+No ROS here; :mod:`ow_sim_bullet.sim_node` wires it to topics and services. One instance owns one
+pybullet client and must only be used from one thread.
+
+Frames: the lander's ``base_link`` is fixed at the world origin, so world and base_link coincide.
+Transforms are named ``X_<to>_<from>`` (``X_base_tip`` maps tip coordinates to base_link ones).
+
+Joint control, per joint and physics step (``dt``), the paper's effort PID position controller::
+
+    e = q_set - q;  integral = clip(integral + i e dt, +-i_clamp)   (not while saturated outward)
+    effort = clip(p e + integral + d (v_set - v_next), +-effort_limit)
+    damping = -c v_next                    (c: the URDF joint damping, a passive torque)
+
+``v_next`` is the joint velocity at the end of the step, predicted from the full joint-space
+inertia and bias (gravity + Coriolis) of pinocchio with the effort and damping treated implicitly
+(``(M + dt C) v_next = M v + dt (p e + integral + d v_set - bias)``, ``C = diag(d + c)``). This is
+backward Euler for the dampers, stable at any step even on the light wrist and scoop links, where
+the explicit form needs 1 kHz and the URDF damping applied explicitly by Bullet diverges. At rest
+``v_next`` is 0, so the holding effort is exactly the gravity torque. Bullet gets effort +
+damping as joint torques; its own joint damping and link damping are set to zero, so the energy
+the damping dissipates in a step is exactly ``-damping * v dt`` (published separately).
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+import pybullet as pb
+from ow_dem_bridge.api import ToolState, Wrench
+from ow_lander.description import (
+    ALL_JOINTS,
+    GRINDER_LINK,
+    GRINDER_TIP_FRAME,
+    SCOOP_LINK,
+    SCOOP_TIP_FRAME,
+    TERRAIN_CONTACT_LINKS,
+    URDF_PATH,
+)
+from ow_lander.terrain import HeightMap
+
+from ow_sim_bullet.bullet_terrain import BulletTerrain
+from ow_sim_bullet.config import PidGains, SimConfig
+from ow_sim_bullet.errors import CommandError, ConfigError
+from ow_sim_bullet.trajectory import ActiveTrajectory, JointTrajectory
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Bullet collision filter bits: only the tools and the terrain ever collide.
+_TOOL_GROUP = 1
+_TERRAIN_GROUP = 2
+_OTHER_GROUP = 4
+#: Coulomb friction coefficient of the tools and of the terrain (Bullet multiplies them: 0.5).
+_TOOL_FRICTION = 1.0
+_TERRAIN_FRICTION = 0.5
+#: m, how far ahead of a moving tool tip the terrain counts for the tool's depth.
+_DEPTH_LOOKAHEAD = 0.05
+#: m/s, tip speeds below this count as not moving (depth is taken at the tip only).
+_MOVING_SPEED = 1e-3
+
+#: (row, col) offsets of the four corners of a grid cell from its lower-left corner.
+_CORNERS = np.array([(0, 0), (0, 1), (1, 0), (1, 1)])
+#: m, depth below the surface at which a tool that does not press removes material anyway.
+_EMBEDDED_DEPTH = 0.01
+
+#: tool name -> (link, tip frame)
+TOOLS: dict[str, tuple[str, str]] = {
+    "scoop": (SCOOP_LINK, SCOOP_TIP_FRAME),
+    "grinder": (GRINDER_LINK, GRINDER_TIP_FRAME),
+}
+
+
+class TerrainForceModel(Protocol):
+    """Anything with ``wrench(state) -> Wrench`` (see :mod:`ow_dem_bridge.api`)."""
+
+    def wrench(self, state: ToolState) -> Wrench: ...
+
+
+@dataclass(frozen=True)
+class UrdfJoint:
+    """One joint of the URDF.
+
+    Attributes:
+        name: joint name.
+        kind: revolute, continuous, prismatic or fixed.
+        parent: parent link.
+        child: child link.
+        effort_limit: N m (inf when not given).
+        damping: N m s / rad, viscous joint damping.
+    """
+
+    name: str
+    kind: str
+    parent: str
+    child: str
+    effort_limit: float
+    damping: float
+
+
+def read_urdf_joints(urdf_text: str) -> dict[str, UrdfJoint]:
+    """Joints of a URDF document by name, in document order.
+
+    Raises:
+        ConfigError: a movable joint has a friction attribute (not simulated here).
+    """
+    joints = {}
+    for element in ET.fromstring(urdf_text).iter("joint"):
+        name = element.get("name", "")
+        limit = element.find("limit")
+        dynamics = element.find("dynamics")
+        effort = float(limit.get("effort", "inf")) if limit is not None else math.inf
+        damping = float(dynamics.get("damping", "0")) if dynamics is not None else 0.0
+        if dynamics is not None and float(dynamics.get("friction", "0")) != 0.0:
+            msg = f"URDF joint {name} has friction; joint friction is not simulated"
+            raise ConfigError(msg)
+        parent = element.find("parent")
+        child = element.find("child")
+        joints[name] = UrdfJoint(
+            name,
+            element.get("type", ""),
+            parent.get("link", "") if parent is not None else "",
+            child.get("link", "") if child is not None else "",
+            effort,
+            damping,
+        )
+    return joints
+
+
+def physical_inertias(urdf_text: str, margin: float = 1e-3) -> tuple[str, list[str]]:
+    """Make every inertia tensor satisfy the triangle inequality with a relative ``margin``.
+
+    Bullet zeroes the inertia of a link whose principal moments (l1 <= l2 <= l3) break, or only
+    just meet, l1 + l2 >= l3, which leaves the link without rotational inertia. Adding the
+    smallest ``a`` times the identity (every principal moment grows by ``a``) restores it.
+
+    Args:
+        urdf_text: the URDF document.
+        margin: required (l1 + l2 - l3) / l3.
+
+    Returns:
+        The (possibly) corrected URDF text and the names of the links that were corrected.
+    """
+    root = ET.fromstring(urdf_text)
+    corrected = []
+    for link in root.iter("link"):
+        inertia = link.find("inertial/inertia")
+        if inertia is None:
+            continue
+        names = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+        ixx, ixy, ixz, iyy, iyz, izz = (float(inertia.get(k, "0")) for k in names)
+        tensor = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        low, mid, high = np.linalg.eigvalsh(tensor)
+        shortfall = margin * high - (low + mid - high)
+        if shortfall > 0:
+            for key, value in (("ixx", ixx), ("iyy", iyy), ("izz", izz)):
+                inertia.set(key, f"{value + shortfall:.9g}")
+            corrected.append(link.get("name", ""))
+    if not corrected:
+        return urdf_text, []
+    return ET.tostring(root, encoding="unicode"), corrected
+
+
+def _rpy_matrix(roll: float, pitch: float, yaw: float) -> FloatArray:
+    """URDF fixed-axis roll-pitch-yaw -> rotation matrix (Rz Ry Rx)."""
+    cr, sr, cp, sp, cy, sy = (
+        math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
+    )
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def collision_surface_points(urdf_text: str, link_name: str, spacing: float) -> FloatArray:
+    """Points on the surface of a link's box and cylinder collision shapes, in the link frame.
+
+    Args:
+        urdf_text: the URDF document.
+        link_name: the link.
+        spacing: m, largest distance between neighbouring points.
+
+    Returns:
+        (n, 3) m.
+
+    Raises:
+        ConfigError: the link is missing or has a collision shape other than a box or cylinder.
+    """
+    link = next((e for e in ET.fromstring(urdf_text).iter("link") if e.get("name") == link_name), None)
+    if link is None:
+        msg = f"link {link_name} is not in the URDF"
+        raise ConfigError(msg)
+    clouds = []
+    for collision in link.iter("collision"):
+        origin = collision.find("origin")
+        xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
+        rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
+        box = collision.find("geometry/box")
+        cylinder = collision.find("geometry/cylinder")
+        if box is not None:
+            size = [float(v) for v in box.get("size", "0 0 0").split()]
+            axes = [np.linspace(-s / 2, s / 2, max(2, math.ceil(s / spacing) + 1)) for s in size]
+            grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+            on_face = np.any(np.isclose(np.abs(grid), np.array(size) / 2), axis=1)
+            local = grid[on_face]
+        elif cylinder is not None:
+            radius, length = float(cylinder.get("radius", "0")), float(cylinder.get("length", "0"))
+            angles = np.linspace(0, 2 * math.pi, max(8, math.ceil(2 * math.pi * radius / spacing)), endpoint=False)
+            heights = np.linspace(-length / 2, length / 2, max(2, math.ceil(length / spacing) + 1))
+            a, h = np.meshgrid(angles, heights)
+            side = np.stack((radius * np.cos(a), radius * np.sin(a), h), axis=-1).reshape(-1, 3)
+            radii = np.linspace(0, radius, max(2, math.ceil(radius / spacing) + 1))
+            rr, aa = np.meshgrid(radii, angles)
+            disc = np.stack((rr * np.cos(aa), rr * np.sin(aa)), axis=-1).reshape(-1, 2)
+            caps = [np.column_stack((disc, np.full(len(disc), z))) for z in (-length / 2, length / 2)]
+            local = np.vstack((side, *caps))
+        else:
+            msg = f"collision of {link_name} must be boxes or cylinders to be carved with"
+            raise ConfigError(msg)
+        clouds.append(local @ _rpy_matrix(*rpy).T + np.asarray(xyz))
+    return np.vstack(clouds)
+
+
+@dataclass(frozen=True)
+class JointSample:
+    """The joints at one instant, with the torques applied over the following step.
+
+    Attributes:
+        time: s of sim time.
+        names: joint names (ALL_JOINTS order).
+        position: (9,) rad.
+        velocity: (9,) rad/s.
+        effort: (9,) N m, the controller's (motor) torque.
+        damping_effort: (9,) N m, the passive joint-damping torque; its power -damping * v is
+            dissipated.
+        setpoint: (9,) rad, the controllers' set-points.
+    """
+
+    time: float
+    names: tuple[str, ...]
+    position: FloatArray
+    velocity: FloatArray
+    effort: FloatArray
+    damping_effort: FloatArray
+    setpoint: FloatArray
+
+
+@dataclass
+class _ToolTrack:
+    """Per-tool contact and dig bookkeeping (mutable, sim thread only)."""
+
+    link_index: int
+    surface_points: FloatArray
+    last_normal_force: float = 0.0
+    force_sum: FloatArray = field(default_factory=lambda: np.zeros(3))
+    moment_sum: FloatArray = field(default_factory=lambda: np.zeros(3))
+    samples: int = 0
+    progress: float = 0.0
+    last_tip: FloatArray | None = None
+    state: ToolState | None = None
+    model_wrench: Wrench | None = None
+
+
+@dataclass(frozen=True)
+class ToolSnapshot:
+    """A tool's pose, velocity and terrain interaction, for publishing.
+
+    Attributes:
+        tool: "scoop" or "grinder".
+        link: the tool link.
+        time: s of sim time.
+        X_base_link: (4, 4) pose of the tool link in base_link.
+        linear_velocity: (3,) m/s, tool link origin velocity in base_link.
+        angular_velocity: (3,) rad/s, tool link angular velocity in base_link.
+        tip: (3,) m, tool tip position in base_link.
+        terrain_z: m, terrain height at the tip's x, y.
+        depth: m, penetration of the tip below the terrain ahead of it (>= 0).
+        progress: m, tip path length below the surface in this dig.
+        material: terrain material id.
+        force: (3,) N, mean contact + terrain-model force on the tool since the last snapshot,
+            in the tool link frame.
+        torque: (3,) N m, the matching torque about the tool link origin, in the tool link frame.
+    """
+
+    tool: str
+    link: str
+    time: float
+    X_base_link: FloatArray
+    linear_velocity: FloatArray
+    angular_velocity: FloatArray
+    tip: FloatArray
+    terrain_z: float
+    depth: float
+    progress: float
+    material: int
+    force: FloatArray
+    torque: FloatArray
+
+
+def make_force_model(name: str, params: Mapping[str, Any]) -> TerrainForceModel | None:
+    """The terrain-force model called ``name`` from ``ow_dem_bridge.models``, or None for "none".
+
+    Raises:
+        ConfigError: the factory is missing or rejects the name or parameters.
+    """
+    if name == "none":
+        return None
+    try:
+        from ow_dem_bridge.models import make_model  # type: ignore[import-not-found]
+    except ImportError as error:
+        msg = f"terrain_forces {name!r} needs ow_dem_bridge.models.make_model: {error}"
+        raise ConfigError(msg) from error
+    try:
+        model = make_model(name, dict(params))
+    except Exception as error:
+        msg = f"terrain_forces {name!r}: ow_dem_bridge could not make the model: {error}"
+        raise ConfigError(msg) from error
+    if not callable(getattr(model, "wrench", None)):
+        msg = f"terrain_forces {name!r}: the model has no wrench(state) method"
+        raise ConfigError(msg)
+    return model  # type: ignore[no-any-return]
+
+
+class BulletSim:
+    """The lander on Europa in pybullet, with PID-controlled joints and a carvable terrain.
+
+    Args:
+        config: validated parameters.
+        heightmap: the initial terrain.
+        force_model: terrain-force model for tools below the surface, or None.
+    """
+
+    def __init__(
+        self,
+        config: SimConfig,
+        heightmap: HeightMap,
+        force_model: TerrainForceModel | None = None,
+    ) -> None:
+        self.config = config
+        self.dt = config.dt
+        self.force_model = force_model
+        urdf_text, self.corrected_inertias = physical_inertias(URDF_PATH.read_text())
+        self.urdf_joints = read_urdf_joints(urdf_text)
+        # pinocchio, on the same URDF, gives the inertia and bias the implicit dampers use and the
+        # frame poses. Our joint arrays use pinocchio's coordinate order, so no permutation.
+        self._pin_model = pin.buildModelFromXML(urdf_text)
+        self._pin_model.gravity.linear = np.array([0.0, 0.0, -config.gravity])
+        self._pin_data = self._pin_model.createData()
+        order = sorted(
+            ALL_JOINTS, key=lambda j: self._pin_model.joints[self._pin_model.getJointId(j)].idx_q
+        )
+        if self._pin_model.nq != len(ALL_JOINTS) or self._pin_model.nv != len(ALL_JOINTS):
+            msg = f"expected {len(ALL_JOINTS)} one-dof joints, pinocchio has nq {self._pin_model.nq}"
+            raise ConfigError(msg)
+        #: joint names in the order of every joint array of this class.
+        self.names: tuple[str, ...] = tuple(order)
+        n = len(self.names)
+        self._zeros = np.zeros(n)
+
+        self._effort_limit = np.array([self.urdf_joints[j].effort_limit for j in self.names])
+        self._damping = np.array([self.urdf_joints[j].damping for j in self.names])
+        self._kp = np.zeros(n)
+        self._ki = np.zeros(n)
+        self._kd = np.zeros(n)
+        self._i_clamp = np.zeros(n)
+        for joint in self.names:
+            self._set_gains_array(joint, config.gains[joint])
+
+        self.client = pb.connect(pb.DIRECT)
+        pb.setGravity(0.0, 0.0, -config.gravity, physicsClientId=self.client)
+        pb.setPhysicsEngineParameter(
+            fixedTimeStep=self.dt,
+            numSubSteps=0,
+            deterministicOverlappingPairs=1,
+            physicsClientId=self.client,
+        )
+        with tempfile.TemporaryDirectory(prefix="ow_sim_bullet_") as directory:
+            urdf_path = Path(directory) / "lander.urdf"
+            urdf_path.write_text(urdf_text)
+            self.robot = pb.loadURDF(
+                str(urdf_path),
+                useFixedBase=True,
+                flags=pb.URDF_USE_INERTIA_FROM_FILE,
+                physicsClientId=self.client,
+            )
+        self.link_index: dict[str, int] = {}
+        joint_index: dict[str, int] = {}
+        for index in range(pb.getNumJoints(self.robot, physicsClientId=self.client)):
+            info = pb.getJointInfo(self.robot, index, physicsClientId=self.client)
+            joint_index[info[1].decode()] = index
+            self.link_index[info[12].decode()] = index
+        self._bullet_index = [joint_index[j] for j in self.names]
+        for link in (-1, *self.link_index.values()):
+            pb.changeDynamics(
+                self.robot,
+                link,
+                linearDamping=0.0,
+                angularDamping=0.0,
+                jointDamping=0.0,
+                physicsClientId=self.client,
+            )
+            is_tool = link >= 0 and link in [self.link_index[name] for name in TERRAIN_CONTACT_LINKS]
+            pb.setCollisionFilterGroupMask(
+                self.robot,
+                link,
+                _TOOL_GROUP if is_tool else _OTHER_GROUP,
+                _TERRAIN_GROUP if is_tool else 0,
+                physicsClientId=self.client,
+            )
+            if is_tool:
+                pb.changeDynamics(
+                    self.robot, link, lateralFriction=_TOOL_FRICTION, physicsClientId=self.client
+                )
+        # Torque control needs the default velocity motors off.
+        pb.setJointMotorControlArray(
+            self.robot,
+            self._bullet_index,
+            pb.VELOCITY_CONTROL,
+            forces=[0.0] * n,
+            physicsClientId=self.client,
+        )
+        spacing = heightmap.resolution / 4.0
+        self._tools = {
+            tool: _ToolTrack(
+                self.link_index[link], collision_surface_points(urdf_text, link, spacing)
+            )
+            for tool, (link, _) in TOOLS.items()
+        }
+        self._frame_id = {
+            name: self._pin_model.getFrameId(name)
+            for name in (*self.link_index, "base_link")
+            if self._pin_model.existFrame(name)
+        }
+
+        self._heights = np.array(heightmap.heights, dtype=np.float64)
+        self._heightmap = HeightMap(
+            self._heights, heightmap.resolution, heightmap.origin_x, heightmap.origin_y
+        )
+        self._terrain = self._make_terrain()
+        #: incremented whenever the terrain changes (carving or replacement).
+        self.terrain_version = 0
+
+        self.time = 0.0
+        self.steps = 0
+        self._next_carve = 0.0
+        self._trajectories: dict[str, ActiveTrajectory] = {}
+        self._setpoint = np.zeros(n)
+        self._integral = np.zeros(n)
+        self.sample: JointSample
+        self.reset()
+
+    # ------------------------------------------------------------------ commands
+    def reset(self) -> None:
+        """Put the joints at the initial positions, at rest, holding them; clear trajectories.
+
+        The integral terms start at the gravity torque of the initial pose (for joints with an
+        integral gain), as if the controllers had been holding it: the arm does not sag at start.
+        """
+        q0 = np.array([self.config.initial_positions[j] for j in self.names])
+        for index, position in zip(self._bullet_index, q0, strict=True):
+            pb.resetJointState(self.robot, index, position, 0.0, physicsClientId=self.client)
+        self._setpoint = q0.copy()
+        self._trajectories.clear()
+        gravity = self._bias(q0, np.zeros_like(q0))
+        self._integral = np.where(self._ki > 0, np.clip(gravity, -self._i_clamp, self._i_clamp), 0.0)
+        zeros = np.zeros(len(self.names))
+        self.sample = JointSample(
+            self.time, self.names, q0, zeros, gravity, zeros, self._setpoint.copy()
+        )
+        for track in self._tools.values():
+            track.force_sum[:] = 0.0
+            track.moment_sum[:] = 0.0
+            track.samples = 0
+            track.progress = 0.0
+            track.last_tip = None
+            track.state = None
+            track.model_wrench = None
+
+    def set_setpoint(self, joint: str, position: float) -> None:
+        """Command one joint's position set-point (rad); cancels its trajectory.
+
+        Raises:
+            CommandError: unknown joint or non-finite position.
+        """
+        k = self._joint(joint)
+        if not math.isfinite(position):
+            msg = f"set-point {position} for {joint} is not finite; command ignored"
+            raise CommandError(msg)
+        self._trajectories.pop(joint, None)
+        self._setpoint[k] = position
+
+    def set_trajectory(self, trajectory: JointTrajectory) -> None:
+        """Follow ``trajectory`` on its joints (replacing any trajectory they were following)."""
+        start = np.array([self._setpoint[self._joint(j)] for j in trajectory.joints])
+        active = ActiveTrajectory(trajectory, start, self.time)
+        for joint in trajectory.joints:
+            self._trajectories[joint] = active
+
+    def set_gains(self, joint: str, gains: PidGains) -> None:
+        """Change one joint's PID gains now; the integral is kept, within the new clamp.
+
+        Raises:
+            CommandError: unknown joint.
+        """
+        self._joint(joint)
+        self._set_gains_array(joint, gains)
+        self._integral = np.clip(self._integral, -self._i_clamp, self._i_clamp)
+
+    def gains(self, joint: str) -> PidGains:
+        """The gains one joint uses now (i_clamp resolved to N m)."""
+        k = self._joint(joint)
+        return PidGains(
+            float(self._kp[k]), float(self._ki[k]), float(self._kd[k]), float(self._i_clamp[k])
+        )
+
+    def set_terrain(self, heightmap: HeightMap) -> None:
+        """Replace the terrain (the old one, with its trenches, is discarded)."""
+        self._terrain.remove()
+        self._heights = np.array(heightmap.heights, dtype=np.float64)
+        self._heightmap = HeightMap(
+            self._heights, heightmap.resolution, heightmap.origin_x, heightmap.origin_y
+        )
+        self._terrain = self._make_terrain()
+        self.terrain_version += 1
+
+    def _set_gains_array(self, joint: str, gains: PidGains) -> None:
+        k = self.names.index(joint)
+        self._kp[k], self._ki[k], self._kd[k] = gains.p, gains.i, gains.d
+        self._i_clamp[k] = self._effort_limit[k] if gains.i_clamp is None else gains.i_clamp
+
+    def _joint(self, joint: str) -> int:
+        try:
+            return self.names.index(joint)
+        except ValueError:
+            msg = f"unknown joint {joint!r}; joints: {list(self.names)}"
+            raise CommandError(msg) from None
+
+    def _make_terrain(self) -> BulletTerrain:
+        terrain = BulletTerrain(self.client, self._heightmap, _TERRAIN_GROUP, _TOOL_GROUP)
+        for body in terrain.body_ids:
+            pb.changeDynamics(
+                body, -1, lateralFriction=_TERRAIN_FRICTION, physicsClientId=self.client
+            )
+        return terrain
+
+    # ------------------------------------------------------------------ stepping
+    def _bias(self, q: FloatArray, v: FloatArray) -> FloatArray:
+        """N m, gravity + Coriolis joint torques (our order)."""
+        return np.array(pin.rnea(self._pin_model, self._pin_data, q, v, self._zeros))
+
+    def _mass_matrix(self, q: FloatArray) -> FloatArray:
+        """kg m^2, joint-space inertia (our order)."""
+        # pinocchio >= 3 returns the full symmetric matrix.
+        return np.array(pin.crba(self._pin_model, self._pin_data, q))
+
+    def step(self) -> None:
+        """Advance the simulation by one physics step of ``dt`` seconds."""
+        states = pb.getJointStates(self.robot, self._bullet_index, physicsClientId=self.client)
+        q = np.array([s[0] for s in states])
+        v = np.array([s[1] for s in states])
+
+        v_set = np.zeros(len(q))
+        if self._trajectories:
+            for active in set(self._trajectories.values()):
+                positions, velocities = active.sample(self.time)
+                for joint, position, velocity in zip(
+                    active.trajectory.joints, positions, velocities, strict=True
+                ):
+                    if self._trajectories.get(joint) is active:
+                        k = self.names.index(joint)
+                        self._setpoint[k] = position
+                        v_set[k] = velocity
+            for joint in [j for j, a in self._trajectories.items() if a.finished(self.time)]:
+                del self._trajectories[joint]
+
+        effort, damping = self._control(q, v, v_set)
+        self.sample = JointSample(
+            self.time, self.names, q, v, effort, damping, self._setpoint.copy()
+        )
+        if self.force_model is not None:
+            self._apply_terrain_forces(q, v)
+        pb.setJointMotorControlArray(
+            self.robot,
+            self._bullet_index,
+            pb.TORQUE_CONTROL,
+            forces=(effort + damping).tolist(),
+            physicsClientId=self.client,
+        )
+        pb.stepSimulation(physicsClientId=self.client)
+        self.steps += 1
+        self.time = self.steps * self.dt
+        self._accumulate_contacts()
+        if self.time >= self._next_carve - 1e-9:
+            self._next_carve = self.time + self.config.carve_period
+            self._carve()
+
+    def _control(
+        self, q: FloatArray, v: FloatArray, v_set: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """Motor effort and damping torque (N m) for this step; updates the integrals."""
+        dt = self.dt
+        error = self._setpoint - q
+        tau_pi = self._kp * error + self._integral
+        inertia = self._mass_matrix(q)
+        bias = self._bias(q, v)
+        momentum = inertia @ v
+        v_next = np.linalg.solve(
+            inertia + dt * np.diag(self._kd + self._damping),
+            momentum + dt * (tau_pi + self._kd * v_set - bias),
+        )
+        effort = tau_pi + self._kd * (v_set - v_next)
+        saturated = np.abs(effort) > self._effort_limit
+        if saturated.any():
+            limited = np.clip(effort, -self._effort_limit, self._effort_limit)
+            free_kd = np.where(saturated, 0.0, self._kd)
+            v_next = np.linalg.solve(
+                inertia + dt * np.diag(free_kd + self._damping),
+                momentum + dt * (np.where(saturated, limited, tau_pi + self._kd * v_set) - bias),
+            )
+            effort = np.where(saturated, limited, tau_pi + self._kd * (v_set - v_next))
+            effort = np.clip(effort, -self._effort_limit, self._effort_limit)
+        # Anti-windup: no integration while the effort is saturated in the error's direction.
+        winding = saturated & (np.sign(error) == np.sign(effort))
+        self._integral = np.clip(
+            self._integral + np.where(winding, 0.0, self._ki * error * dt),
+            -self._i_clamp,
+            self._i_clamp,
+        )
+        return effort, -self._damping * v_next
+
+    # ------------------------------------------------------------------ tools and terrain
+    def _contacts(self, track: _ToolTrack) -> FloatArray:
+        """(n, 7) contacts of a tool from the last step: point on the tool (3,), force on it (3,), N,
+        normal force N."""
+        contacts = pb.getContactPoints(
+            bodyA=self.robot, linkIndexA=track.link_index, physicsClientId=self.client
+        )
+        if not contacts:
+            return np.zeros((0, 7))
+        raw = np.array([(*c[5], *c[7], c[9], c[10], *c[11], c[12], *c[13]) for c in contacts])
+        force = raw[:, 3:6] * raw[:, 6:7] + raw[:, 8:11] * raw[:, 7:8] + raw[:, 12:15] * raw[:, 11:12]
+        return np.hstack((raw[:, 0:3], force, raw[:, 6:7]))
+
+    def _accumulate_contacts(self) -> None:
+        for track in self._tools.values():
+            contacts = self._contacts(track)
+            track.samples += 1
+            track.last_normal_force = float(contacts[:, 6].sum()) if len(contacts) else 0.0
+            if len(contacts):
+                track.force_sum += contacts[:, 3:6].sum(axis=0)
+                track.moment_sum += np.cross(contacts[:, 0:3], contacts[:, 3:6]).sum(axis=0)
+
+    def _carve(self) -> None:
+        """Lower the terrain wherever a tool is below it, and by ``carve_step`` under a tool that
+        presses on it with more than the yield force (a rigid-plastic terrain)."""
+        hm = self._heightmap
+        rows, cols = self._heights.shape
+        changed_rows: list[int] = []
+        changed_cols: list[int] = []
+        floor = self._terrain.floor + 1e-3
+        for track in self._tools.values():
+            state = pb.getLinkState(self.robot, track.link_index, physicsClientId=self.client)
+            rotation = np.asarray(pb.getMatrixFromQuaternion(state[5])).reshape(3, 3)
+            points = track.surface_points @ rotation.T + np.asarray(state[4])
+            col = np.floor((points[:, 0] - hm.origin_x) / hm.resolution).astype(np.intp)
+            row = np.floor((points[:, 1] - hm.origin_y) / hm.resolution).astype(np.intp)
+            inside = (row >= 0) & (row < rows - 1) & (col >= 0) & (col < cols - 1)
+            z = points[:, 2]
+            if track.last_normal_force > self.config.terrain_yield_force:
+                target, slack = z - self.config.carve_step, 0.0
+            else:
+                # Not pressing: only material a tool is well inside (e.g. after a terrain change)
+                # is removed; Bullet's own contact penetration must not make the tool creep down.
+                target, slack = z, _EMBEDDED_DEPTH
+            near = np.zeros(len(points), dtype=bool)
+            near[inside] = target[inside] + slack < self._heights[row[inside], col[inside]] + hm.resolution
+            if not near.any():
+                continue
+            # Each point lowers the four corners of its grid cell (the vertices of the Bullet
+            # triangles under it).
+            r = (row[near][:, None] + _CORNERS[:, 0]).ravel()
+            c = (col[near][:, None] + _CORNERS[:, 1]).ravel()
+            target = np.maximum(np.repeat(target[near], len(_CORNERS)), floor)
+            cut = self._heights[r, c] > target + slack
+            if cut.any():
+                np.minimum.at(self._heights, (r[cut], c[cut]), target[cut])
+                changed_rows += [int(r[cut].min()), int(r[cut].max())]
+                changed_cols += [int(c[cut].min()), int(c[cut].max())]
+        if changed_rows:
+            self._terrain.refresh(
+                self._heights,
+                (min(changed_rows), max(changed_rows)),
+                (min(changed_cols), max(changed_cols)),
+            )
+            self.terrain_version += 1
+
+    def _frames(self, q: FloatArray, v: FloatArray | None = None) -> None:
+        if v is None:
+            pin.framesForwardKinematics(self._pin_model, self._pin_data, q)
+        else:
+            pin.forwardKinematics(self._pin_model, self._pin_data, q, v)
+            pin.updateFramePlacements(self._pin_model, self._pin_data)
+
+    def _tool_kinematics(
+        self, tool: str, q: FloatArray, v: FloatArray
+    ) -> tuple[pin.SE3, FloatArray, FloatArray, FloatArray, FloatArray]:
+        """Link pose, tip position, tip velocity (base_link), link linear/angular velocity (base)."""
+        link, tip = TOOLS[tool]
+        link_id, tip_id = self._frame_id[link], self._frame_id[tip]
+        world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        link_velocity = pin.getFrameVelocity(self._pin_model, self._pin_data, link_id, world)
+        tip_velocity = pin.getFrameVelocity(self._pin_model, self._pin_data, tip_id, world)
+        return (
+            self._pin_data.oMf[link_id],
+            np.array(self._pin_data.oMf[tip_id].translation),
+            np.array(tip_velocity.linear),
+            np.array(link_velocity.linear),
+            np.array(link_velocity.angular),
+        )
+
+    def _depth(self, tip: FloatArray, tip_velocity: FloatArray) -> tuple[float, float]:
+        """(terrain z at the tip, depth of the tip below the terrain at and ahead of it), m."""
+        terrain_z = float(self._heightmap.height_at(tip[0], tip[1]))
+        horizontal = np.hypot(tip_velocity[0], tip_velocity[1])
+        if horizontal < _MOVING_SPEED:
+            surface = terrain_z
+        else:
+            ahead = np.linspace(0.0, _DEPTH_LOOKAHEAD, 6)
+            direction = tip_velocity[:2] / horizontal
+            surface = float(
+                np.max(self._heightmap.height_at(tip[0] + ahead * direction[0], tip[1] + ahead * direction[1]))
+            )
+        return terrain_z, max(0.0, surface - float(tip[2]))
+
+    def _update_tool(self, tool: str, q: FloatArray, v: FloatArray) -> ToolState | None:
+        """Track depth and progress of one tool; the ToolState when it is below the surface."""
+        track = self._tools[tool]
+        X_base_link, tip, tip_velocity, _, angular = self._tool_kinematics(tool, q, v)
+        _, depth = self._depth(tip, tip_velocity)
+        if depth > 0.0:
+            if track.last_tip is not None:
+                track.progress += float(np.linalg.norm(tip - track.last_tip))
+            track.last_tip = tip
+        else:
+            track.progress = 0.0
+            track.last_tip = None
+            track.state = None
+            return None
+        rotation_t = np.asarray(X_base_link.rotation).T
+        track.state = ToolState(
+            tool=tool,
+            material=self.config.terrain_material,
+            depth=depth,
+            progress=track.progress,
+            velocity=rotation_t @ tip_velocity,
+            angular_velocity=rotation_t @ angular,
+        )
+        return track.state
+
+    def _apply_terrain_forces(self, q: FloatArray, v: FloatArray) -> None:
+        assert self.force_model is not None
+        self._frames(q, v)
+        for tool, (link, _) in TOOLS.items():
+            track = self._tools[tool]
+            state = self._update_tool(tool, q, v)
+            track.model_wrench = None
+            if state is None:
+                continue
+            wrench = self.force_model.wrench(state)
+            track.model_wrench = wrench
+            link_state = pb.getLinkState(self.robot, track.link_index, physicsClientId=self.client)
+            com = np.asarray(link_state[0])
+            rotation = np.asarray(pb.getMatrixFromQuaternion(link_state[1])).reshape(3, 3)
+            force_world = rotation @ np.asarray(wrench.force, dtype=np.float64)
+            torque_world = rotation @ np.asarray(wrench.torque, dtype=np.float64)
+            pb.applyExternalForce(
+                self.robot,
+                track.link_index,
+                force_world.tolist(),
+                com.tolist(),
+                pb.WORLD_FRAME,
+                physicsClientId=self.client,
+            )
+            pb.applyExternalTorque(
+                self.robot,
+                track.link_index,
+                torque_world.tolist(),
+                pb.WORLD_FRAME,
+                physicsClientId=self.client,
+            )
+            track.force_sum += force_world
+            track.moment_sum += np.cross(com, force_world) + torque_world
+
+    # ------------------------------------------------------------------ outputs
+    @property
+    def heightmap(self) -> HeightMap:
+        """A copy of the current (carved) terrain."""
+        hm = self._heightmap
+        return HeightMap(self._heights.copy(), hm.resolution, hm.origin_x, hm.origin_y)
+
+    def terrain_height(self, x: float, y: float) -> float:
+        """m, current terrain height at (x, y) in base_link (bilinear in the height map)."""
+        return float(self._heightmap.height_at(x, y))
+
+    def link_poses(self, q: FloatArray | None = None) -> dict[str, FloatArray]:
+        """(4, 4) pose in base_link of every link, at joint positions q (default: the sample's)."""
+        self._frames(self.sample.position if q is None else q)
+        return {
+            name: np.asarray(self._pin_data.oMf[frame].homogeneous)
+            for name, frame in self._frame_id.items()
+        }
+
+    def tool_snapshot(self, tool: str) -> ToolSnapshot:
+        """The tool now; the mean force and torque since the previous snapshot of this tool."""
+        track = self._tools[tool]
+        link, _ = TOOLS[tool]
+        q, v = self.sample.position, self.sample.velocity
+        self._frames(q, v)
+        X_base_link, tip, tip_velocity, linear, angular = self._tool_kinematics(tool, q, v)
+        terrain_z, depth = self._depth(tip, tip_velocity)
+        if self.force_model is None:
+            # Without a force model nothing tracks the dig every step: track it here.
+            state = self._update_tool(tool, q, v)
+            progress = state.progress if state is not None else 0.0
+        else:
+            progress = track.state.progress if track.state is not None else 0.0
+        count = max(track.samples, 1)
+        origin = np.asarray(X_base_link.translation)
+        force_world = track.force_sum / count
+        moment_world = track.moment_sum / count - np.cross(origin, force_world)
+        track.force_sum[:] = 0.0
+        track.moment_sum[:] = 0.0
+        track.samples = 0
+        rotation_t = np.asarray(X_base_link.rotation).T
+        return ToolSnapshot(
+            tool=tool,
+            link=link,
+            time=self.sample.time,
+            X_base_link=np.asarray(X_base_link.homogeneous),
+            linear_velocity=linear,
+            angular_velocity=angular,
+            tip=tip,
+            terrain_z=terrain_z,
+            depth=depth,
+            progress=progress,
+            material=self.config.terrain_material,
+            force=rotation_t @ force_world,
+            torque=rotation_t @ moment_world,
+        )
+
+    def gravity_torque(self, q: FloatArray) -> FloatArray:
+        """N m, gravity torques (our joint order) at positions q (rad), from pinocchio."""
+        return self._bias(q, np.zeros_like(q))
+
+    def close(self) -> None:
+        """Disconnect from pybullet."""
+        if pb.isConnected(physicsClientId=self.client):
+            pb.disconnect(physicsClientId=self.client)

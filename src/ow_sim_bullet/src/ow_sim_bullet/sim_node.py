@@ -1,0 +1,427 @@
+"""ROS wiring of the simulation: parameters, topics, services and the simulation thread."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from functools import partial
+from typing import Any, TypeVar
+
+import rospy
+import tf2_ros
+from geometry_msgs.msg import PointStamped, WrenchStamped
+from ow_lander.description import URDF_PATH
+from ow_msgs.msg import HeightMap as HeightMapMsg
+from ow_msgs.msg import ToolState as ToolStateMsg
+from ow_msgs.srv import (
+    SetPidGains,
+    SetPidGainsRequest,
+    SetPidGainsResponse,
+    SetTerrain,
+    SetTerrainRequest,
+    SetTerrainResponse,
+    StepSimulation,
+    StepSimulationRequest,
+    StepSimulationResponse,
+)
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+from std_srvs.srv import Trigger, TriggerRequest, TriggerResponse
+from tf2_msgs.msg import TFMessage
+
+from ow_sim_bullet import conversions
+from ow_sim_bullet.config import CONTROLLER_NAMES, PidGains, SimConfig
+from ow_sim_bullet.errors import CommandError, SimError
+from ow_sim_bullet.sim_core import TOOLS, BulletSim, ToolSnapshot, make_force_model
+from ow_sim_bullet.terrains import parse_terrain_spec
+from ow_sim_bullet.trajectory import JointTrajectory
+
+T = TypeVar("T")
+
+#: s of wall time a service waits for the simulation thread before giving up.
+_SERVICE_TIMEOUT = 60.0
+
+
+class _Periodic:
+    """Fires at a fixed rate of sim time, on the first step at or after each tick."""
+
+    def __init__(self, rate_hz: float) -> None:
+        self.period = 1.0 / rate_hz
+        self.next_tick = 0.0
+
+    def due(self, now: float) -> bool:
+        if now + 1e-9 < self.next_tick:
+            return False
+        ticks = int((now + 1e-9) / self.period) + 1
+        self.next_tick = ticks * self.period
+        return True
+
+
+class SimNode:
+    """The ``sim`` node: the lander arm in pybullet, driven like OceanWATERS' Gazebo.
+
+    Publications:
+        /clock (rosgraph_msgs/Clock): sim time, at ``~clock_rate_hz``.
+        /joint_states (sensor_msgs/JointState): the 9 joints at ``~joint_state_rate_hz``:
+            position rad, velocity rad/s, effort N m = the controller torque applied.
+        /sim/joint_damping (sensor_msgs/JointState): same stamps; effort N m = the passive
+            joint-damping torque applied (its power, effort * velocity, is dissipated).
+        /tf (tf2_msgs/TFMessage): every movable joint's link, at ``~tf_rate_hz``.
+        /tf_static (tf2_msgs/TFMessage): fixed frames (l_scoop_tip, l_grinder_tip, sample dock).
+        /sim/scoop_wrench, /sim/grinder_wrench (geometry_msgs/WrenchStamped): mean contact and
+            terrain-model force N and torque N m on the tool since the previous message, in the
+            tool link frame about its origin, at ``~wrench_rate_hz``.
+        /sim/scoop_tip_ground (geometry_msgs/PointStamped): base_link x, y of l_scoop_tip and
+            z = true terrain height there (m), at ``~wrench_rate_hz``.
+        /sim/scoop_state, /sim/grinder_state (ow_msgs/ToolState): at ``~tool_state_rate_hz``.
+        /sim/terrain (ow_msgs/HeightMap, latched): the terrain; republished after carving at
+            most every ``~terrain_publish_period`` s of wall time.
+
+    Subscriptions:
+        /<controller>_position_controller/command (std_msgs/Float64): rad, set-point of one joint
+            (controllers shou_yaw, shou_pitch, prox_pitch, dist_pitch, hand_yaw, scoop_yaw,
+            grinder_yaw, ant_pan, ant_tilt); cancels that joint's trajectory.
+        /sim/joint_trajectory (trajectory_msgs/JointTrajectory): interpolated by the sim; a zero
+            header stamp starts it on arrival, else at that sim time.
+
+    Services (std_srvs/Trigger unless given):
+        ~reset: joints back to ``~initial_positions`` (stowed), at rest, trajectories cleared.
+        ~pause, ~resume: stop and restart the clock.
+        ~step (ow_msgs/StepSimulation): advance a paused simulation by N physics steps.
+        ~set_pid_gains (ow_msgs/SetPidGains): change one joint's gains now.
+        ~set_terrain (ow_msgs/SetTerrain): replace the terrain (spec as ``~terrain``).
+
+    Parameters: see :class:`ow_sim_bullet.config.SimConfig` and docs/simulation.md.
+    """
+
+    def __init__(self, config: SimConfig) -> None:
+        self.config = config
+        heightmap = self._parse_terrain(config.terrain)
+        self.sim = BulletSim(
+            config, heightmap, make_force_model(config.terrain_forces, config.terrain_force_params)
+        )
+        if self.sim.corrected_inertias:
+            rospy.logwarn(
+                "inertia tensors of %s break the triangle inequality (Bullet would zero them); "
+                "added the smallest isotropic inertia that makes them physical",
+                ", ".join(self.sim.corrected_inertias),
+            )
+        self._frames = [
+            f for f in conversions.joint_frames(URDF_PATH.read_text()) if f.axis is not None
+        ]
+        self._frame_joint_index = [self.sim.names.index(f.joint) for f in self._frames]
+        self._lock = threading.Lock()
+        self._wake = threading.Condition(self._lock)
+        self._queue: deque[Callable[[], None]] = deque()
+        self._paused = config.start_paused
+        self._shutdown = False
+
+        self._clock_pub = rospy.Publisher("/clock", Clock, queue_size=10)
+        self._joint_pub = rospy.Publisher("/joint_states", JointState, queue_size=100)
+        self._damping_pub = rospy.Publisher("~joint_damping", JointState, queue_size=100)
+        self._tf_pub = rospy.Publisher("/tf", TFMessage, queue_size=100)
+        self._wrench_pubs = {
+            tool: rospy.Publisher(f"~{tool}_wrench", WrenchStamped, queue_size=100) for tool in TOOLS
+        }
+        self._tip_ground_pub = rospy.Publisher("~scoop_tip_ground", PointStamped, queue_size=100)
+        self._tool_pubs = {
+            tool: rospy.Publisher(f"~{tool}_state", ToolStateMsg, queue_size=10) for tool in TOOLS
+        }
+        self._terrain_pub = rospy.Publisher("~terrain", HeightMapMsg, queue_size=1, latch=True)
+        self._static_tf = tf2_ros.StaticTransformBroadcaster()
+        self._static_tf.sendTransform(
+            [
+                conversions.transform_msg(f, 0.0, 0.0)
+                for f in conversions.joint_frames(URDF_PATH.read_text())
+                if f.axis is None
+            ]
+        )
+        self._publish_terrain()
+
+        self._clock_tick = _Periodic(config.clock_rate_hz)
+        self._joint_tick = _Periodic(config.joint_state_rate_hz)
+        self._tf_tick = _Periodic(config.tf_rate_hz)
+        self._wrench_tick = _Periodic(config.wrench_rate_hz)
+        self._tool_tick = _Periodic(config.tool_state_rate_hz)
+        self._snapshots: dict[str, ToolSnapshot] = {}
+        self._terrain_published_version = self.sim.terrain_version
+        self._terrain_published_wall = time.monotonic()
+
+        for joint, controller in CONTROLLER_NAMES.items():
+            rospy.Subscriber(
+                f"/{controller}_position_controller/command",
+                Float64,
+                partial(self._on_setpoint, joint),
+                queue_size=10,
+            )
+        try:
+            from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
+        except ImportError:
+            rospy.logerr(
+                "sim: ~joint_trajectory is disabled: trajectory_msgs is not installed "
+                "(apt package python3-trajectory-msgs)"
+            )
+        else:
+            rospy.Subscriber(
+                "~joint_trajectory", JointTrajectoryMsg, self._on_trajectory, queue_size=10
+            )
+        rospy.Service("~reset", Trigger, self._on_reset)
+        rospy.Service("~pause", Trigger, self._on_pause)
+        rospy.Service("~resume", Trigger, self._on_resume)
+        rospy.Service("~step", StepSimulation, self._on_step)
+        rospy.Service("~set_pid_gains", SetPidGains, self._on_set_gains)
+        rospy.Service("~set_terrain", SetTerrain, self._on_set_terrain)
+        self._thread = threading.Thread(target=self._run, name="sim", daemon=True)
+
+    def _parse_terrain(self, spec: str) -> Any:
+        c = self.config
+        return parse_terrain_spec(
+            spec, c.terrain_file_resolution, c.terrain_file_center, c.terrain_png_height_range
+        )
+
+    # ------------------------------------------------------------------ callbacks
+    def _enqueue(self, command: Callable[[], None]) -> None:
+        with self._wake:
+            self._queue.append(command)
+            self._wake.notify()
+
+    def _call(self, command: Callable[[], T], timeout_s: float = _SERVICE_TIMEOUT) -> T:
+        """Run ``command`` on the simulation thread and return its result (or raise its error)."""
+        done = threading.Event()
+        result: dict[str, Any] = {}
+
+        def run() -> None:
+            try:
+                result["value"] = command()
+            except Exception as error:
+                result["error"] = error
+            finally:
+                done.set()
+
+        self._enqueue(run)
+        deadline = time.monotonic() + timeout_s
+        while not done.wait(0.1):
+            if rospy.is_shutdown() or self._shutdown or time.monotonic() > deadline:
+                msg = "the simulation thread did not answer (shutting down or stalled)"
+                raise SimError(msg)
+        if "error" in result:
+            raise result["error"]
+        return result["value"]  # type: ignore[no-any-return]
+
+    def _on_setpoint(self, joint: str, msg: Float64) -> None:
+        def apply() -> None:
+            try:
+                self.sim.set_setpoint(joint, msg.data)
+            except CommandError as error:
+                rospy.logerr_throttle(1.0, f"sim: {error}")
+
+        self._enqueue(apply)
+
+    def _on_trajectory(self, msg: Any) -> None:
+        velocities = None
+        if msg.points and all(len(p.velocities) for p in msg.points):
+            velocities = [list(p.velocities) for p in msg.points]
+        elif any(len(p.velocities) for p in msg.points):
+            rospy.logerr("sim: trajectory ignored: give velocities on every point or on none")
+            return
+        start = msg.header.stamp.to_sec()
+
+        def apply() -> None:
+            try:
+                trajectory = JointTrajectory.build(
+                    msg.joint_names,
+                    start if start > 0 else self.sim.time,
+                    [p.time_from_start.to_sec() for p in msg.points],
+                    [list(p.positions) for p in msg.points],
+                    velocities,
+                    self.sim.names,
+                )
+            except CommandError as error:
+                rospy.logerr(f"sim: trajectory ignored: {error}")
+                return
+            self.sim.set_trajectory(trajectory)
+
+        self._enqueue(apply)
+
+    def _on_reset(self, _: TriggerRequest) -> TriggerResponse:
+        try:
+            self._call(self.sim.reset)
+        except SimError as error:
+            return TriggerResponse(success=False, message=str(error))
+        return TriggerResponse(success=True, message=f"joints reset at sim time {self.sim.time:.3f} s")
+
+    def _on_pause(self, _: TriggerRequest) -> TriggerResponse:
+        with self._wake:
+            was = self._paused
+            self._paused = True
+        return TriggerResponse(success=True, message="already paused" if was else "paused")
+
+    def _on_resume(self, _: TriggerRequest) -> TriggerResponse:
+        with self._wake:
+            was = self._paused
+            self._paused = False
+            self._wake.notify()
+        return TriggerResponse(success=True, message="resumed" if was else "already running")
+
+    def _on_step(self, request: StepSimulationRequest) -> StepSimulationResponse:
+        if request.steps == 0:
+            return StepSimulationResponse(False, "steps must be > 0", self.sim.time)
+        with self._wake:
+            if not self._paused:
+                return StepSimulationResponse(
+                    False, "the simulation is running; call ~pause first", self.sim.time
+                )
+
+        def take_steps() -> float:
+            for _ in range(request.steps):
+                self.sim.step()
+                self._publish()
+            return self.sim.time
+
+        try:
+            sim_time = self._call(take_steps, _SERVICE_TIMEOUT + 0.01 * request.steps)
+        except SimError as error:
+            return StepSimulationResponse(False, str(error), self.sim.time)
+        return StepSimulationResponse(True, f"stepped {request.steps} steps", sim_time)
+
+    def _on_set_gains(self, request: SetPidGainsRequest) -> SetPidGainsResponse:
+        values = {"p": request.p, "i": request.i, "d": request.d, "i_clamp": request.i_clamp}
+        try:
+            gains = PidGains.from_dict(values, f"gains of {request.joint}")
+            self._call(partial(self.sim.set_gains, request.joint, gains))
+        except SimError as error:
+            return SetPidGainsResponse(success=False, message=str(error))
+        return SetPidGainsResponse(
+            success=True, message=f"{request.joint}: p {gains.p} i {gains.i} d {gains.d} i_clamp {gains.i_clamp}"
+        )
+
+    def _on_set_terrain(self, request: SetTerrainRequest) -> SetTerrainResponse:
+        try:
+            heightmap = self._parse_terrain(request.terrain)
+
+            def install() -> None:
+                self.sim.set_terrain(heightmap)
+                self._publish_terrain()
+
+            self._call(install)
+        except SimError as error:
+            return SetTerrainResponse(success=False, message=str(error))
+        return SetTerrainResponse(success=True, message=f"terrain is now {request.terrain}")
+
+    # ------------------------------------------------------------------ simulation thread
+    def start(self) -> None:
+        """Start the simulation thread."""
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop the simulation thread and pybullet."""
+        with self._wake:
+            self._shutdown = True
+            self._wake.notify()
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)
+        self.sim.close()
+
+    def _run(self) -> None:
+        try:
+            self._loop()
+        except Exception as error:  # a bug: log it loudly, then take the node down
+            rospy.logfatal(f"sim: simulation thread failed: {error!r}")
+            rospy.signal_shutdown("simulation thread failed")
+            raise
+
+    def _loop(self) -> None:
+        rtf = self.config.real_time_factor
+        pace_wall = time.monotonic()
+        pace_sim = self.sim.time
+        self._publish(force=True)
+        while not rospy.is_shutdown():
+            with self._wake:
+                while not self._shutdown and not self._queue and self._paused:
+                    self._wake.wait(timeout=0.1)
+                    self._publish_terrain_if_due()
+                if self._shutdown:
+                    return
+                commands = list(self._queue)
+                self._queue.clear()
+                paused = self._paused
+            for command in commands:
+                command()
+            if paused:
+                pace_wall, pace_sim = time.monotonic(), self.sim.time
+                continue
+            self.sim.step()
+            self._publish()
+            if rtf > 0:
+                ahead = (self.sim.time - pace_sim) / rtf - (time.monotonic() - pace_wall)
+                if ahead > 0:
+                    time.sleep(ahead)
+                elif ahead < -0.5:
+                    # Too slow to keep up: do not try to catch up later.
+                    pace_wall, pace_sim = time.monotonic(), self.sim.time
+
+    def _publish(self, force: bool = False) -> None:
+        sim = self.sim
+        now = sim.time
+        if self._clock_tick.due(now) or force:
+            self._clock_pub.publish(Clock(clock=conversions.stamp(now)))
+        sample = sim.sample
+        if self._joint_tick.due(sample.time) or force:
+            self._joint_pub.publish(conversions.joint_state_msg(sample))
+            self._damping_pub.publish(conversions.joint_state_msg(sample, damping=True))
+        if self._tf_tick.due(sample.time) or force:
+            positions = sample.position
+            self._tf_pub.publish(
+                TFMessage(
+                    [
+                        conversions.transform_msg(frame, positions[k], sample.time)
+                        for frame, k in zip(self._frames, self._frame_joint_index, strict=True)
+                    ]
+                )
+            )
+        if self._wrench_tick.due(sample.time) or force:
+            for tool, publisher in self._wrench_pubs.items():
+                snapshot = sim.tool_snapshot(tool)
+                self._snapshots[tool] = snapshot
+                publisher.publish(conversions.wrench_msg(snapshot))
+            self._tip_ground_pub.publish(conversions.tip_ground_msg(self._snapshots["scoop"]))
+        if self._tool_tick.due(sample.time) or force:
+            for tool, publisher in self._tool_pubs.items():
+                if tool in self._snapshots:
+                    publisher.publish(conversions.tool_state_msg(self._snapshots[tool]))
+        self._publish_terrain_if_due()
+
+    def _publish_terrain_if_due(self) -> None:
+        if self.sim.terrain_version == self._terrain_published_version:
+            return
+        if time.monotonic() - self._terrain_published_wall < self.config.terrain_publish_period:
+            return
+        self._publish_terrain()
+
+    def _publish_terrain(self) -> None:
+        self._terrain_published_version = self.sim.terrain_version
+        self._terrain_published_wall = time.monotonic()
+        self._terrain_pub.publish(conversions.heightmap_msg(self.sim.heightmap, self.sim.time))
+
+
+def main() -> None:
+    """Entry point of ``rosrun ow_sim_bullet sim``."""
+    rospy.init_node("sim")
+    try:
+        config = SimConfig.from_dict(rospy.get_param("~", {}))
+        node = SimNode(config)
+    except SimError as error:
+        rospy.logfatal(f"sim: cannot start: {error}")
+        raise SystemExit(1) from error
+    rospy.on_shutdown(node.stop)
+    node.start()
+    rospy.loginfo(
+        "sim: running at %.0f Hz physics, real-time factor %s, terrain %s",
+        config.physics_rate_hz,
+        config.real_time_factor,
+        config.terrain,
+    )
+    rospy.spin()
