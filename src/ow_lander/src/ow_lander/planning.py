@@ -1,0 +1,526 @@
+"""Motion planning for the six arm joints: free-space (direct segment or OMPL RRT*) and Cartesian
+lines (IK every ``cartesian_step_m``), collision-checked against self, lander body, dock and the
+terrain. No ROS.
+
+States are arm vectors ``arm: (6,) rad`` in :data:`~ow_lander.description.ARM_JOINTS` order; the
+other joints (grinder, antenna) keep the values of a base configuration ``base: (9,)`` in
+pinocchio order (see :mod:`ow_lander.model`).
+
+The optimisation objective is mechanical work against gravity (Europa's), the energy the joint
+motors spend on a quasi-static motion: the sum over joints of |tau_g(q) * dq| along the path, plus
+``path_length_weight`` times the joint-space path length. OMPL's MechanicalWorkOptimizationObjective
+is not used: it ignores the robot's dynamics and reduces to path length.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+from ompl import base as ob
+from ompl import geometric as og
+from ompl import util as ou
+
+from ow_lander.config import PlannerConfig
+from ow_lander.description import ARM_JOINTS
+from ow_lander.errors import IKError, PlanningError
+from ow_lander.model import ARM_LINKS, LanderModel
+from ow_lander.terrain import HeightMap
+
+FloatArray = npt.NDArray[np.float64]
+
+#: rad, joint step of the work integral reported for plans (gravity torque at step midpoints).
+WORK_STEP_RAD = 0.02
+#: rad, coarser step of the same integral inside RRT*'s objective (called ~20 times an iteration).
+OBJECTIVE_STEP_RAD = 0.25
+
+# OMPL reports through its own logger; our errors carry the reasons. RNG.setSeed also logs an
+# error when called after the first plan, although it does reseed (see ArmPlanner._rrt_star).
+ou.setLogLevel(ou.LogLevel.LOG_NONE)
+
+
+@dataclass(frozen=True)
+class CheckContext:
+    """What a state is checked against.
+
+    Attributes:
+        base: (9,) rad, configuration giving the non-arm joints (grinder, antenna).
+        terrain: height map, or None for no terrain check.
+        terrain_links: links that must stay above the terrain (leave out a digging tool).
+        terrain_margin: m, clearance required above the terrain.
+    """
+
+    base: FloatArray
+    terrain: HeightMap | None
+    terrain_links: tuple[str, ...] = ARM_LINKS
+    terrain_margin: float = 0.0
+
+
+@dataclass
+class PlanStats:
+    """What the planner did, for messages and benchmarks.
+
+    Attributes:
+        direct_segments: free-space segments solved by the direct joint-space segment.
+        rrt_segments: free-space segments solved by RRT*.
+        rrt_iterations: RRT* iterations run in total.
+        cartesian_waypoints: IK solutions computed along Cartesian lines.
+    """
+
+    direct_segments: int = 0
+    rrt_segments: int = 0
+    rrt_iterations: int = 0
+    cartesian_waypoints: int = 0
+    notes: list[str] = field(default_factory=list)
+
+
+def densify(waypoints: FloatArray, resolution: float) -> FloatArray:
+    """(m, k) states along the polyline ``waypoints`` (n, k) with no joint step above
+    ``resolution`` rad; every waypoint is kept."""
+    points = np.asarray(waypoints, dtype=np.float64)
+    out = [points[:1]]
+    for a, b in zip(points[:-1], points[1:], strict=True):
+        n = max(1, int(np.ceil(np.max(np.abs(b - a)) / resolution - 1e-9)))
+        w = np.arange(1, n + 1)[:, None] / n
+        out.append(a + w * (b - a))
+    return np.vstack(out)
+
+
+class ArmPlanner:
+    """Plans arm motions for one :class:`LanderModel` (not thread-safe, like the model).
+
+    Args:
+        model: kinematics, dynamics and collision model (this planner's own instance).
+        config: planner settings.
+    """
+
+    def __init__(self, model: LanderModel, config: PlannerConfig) -> None:
+        self.model = model
+        self.config = config
+        self.idx = model.arm_idx
+        self.lower = model.lower[self.idx].copy()
+        self.upper = model.upper[self.idx].copy()
+        self.velocity_limits = model.velocity_limit[self.idx].copy()
+        self.stats = PlanStats()
+
+    # ------------------------------------------------------------------------------ helpers
+    def full(self, arm: FloatArray, base: FloatArray) -> FloatArray:
+        """(9,) rad configuration: ``base`` with the arm joints set to ``arm`` (6,)."""
+        q = np.array(base, dtype=np.float64)
+        q[self.idx] = arm
+        return q
+
+    def arm(self, q: FloatArray) -> FloatArray:
+        """(6,) rad arm joints of a (9,) configuration."""
+        return np.asarray(q, dtype=np.float64)[self.idx].copy()
+
+    def within_limits(self, arm: FloatArray) -> bool:
+        """True when every arm joint is within its URDF limits."""
+        return bool(np.all(arm >= self.lower - 1e-9) and np.all(arm <= self.upper + 1e-9))
+
+    def is_valid(self, arm: FloatArray, ctx: CheckContext) -> bool:
+        """True when ``arm`` is within the joint limits and collision-free in ``ctx``."""
+        if not self.within_limits(arm):
+            return False
+        return not self.model.in_collision(
+            self.full(arm, ctx.base), ctx.terrain, ctx.terrain_links, ctx.terrain_margin
+        )
+
+    def explain(self, arm: FloatArray, ctx: CheckContext) -> str:
+        """Why ``arm`` is invalid, in words (joint limits or contacts)."""
+        q = self.full(arm, ctx.base)
+        problems = self.model.limit_violations(q, ARM_JOINTS)
+        report = self.model.collision_report(q, ctx.terrain, ctx.terrain_links, ctx.terrain_margin)
+        if report.in_collision:
+            problems.append(report.describe())
+        return "; ".join(problems) or "valid"
+
+    def first_invalid(
+        self, waypoints: FloatArray, ctx: CheckContext, resolution: float | None = None
+    ) -> FloatArray | None:
+        """The first invalid state along the polyline at ``resolution`` rad (default: the
+        configured joint resolution), or None when the whole path is valid."""
+        for arm in densify(waypoints, resolution or self.config.joint_resolution_rad):
+            if not self.is_valid(arm, ctx):
+                return arm
+        return None
+
+    def unwrap(self, arm: FloatArray, reference: FloatArray) -> FloatArray:
+        """``arm`` with each full-turn joint moved by whole turns to the value closest to
+        ``reference`` that stays within its limits."""
+        out = np.array(arm, dtype=np.float64)
+        full_turn = self.upper - self.lower >= 2 * np.pi - 1e-6
+        for j in np.flatnonzero(full_turn):
+            turns = np.round((reference[j] - out[j]) / (2 * np.pi))
+            for k in (turns, turns - 1, turns + 1):
+                candidate = out[j] + 2 * np.pi * k
+                if self.lower[j] <= candidate <= self.upper[j]:
+                    out[j] = candidate
+                    break
+        return out
+
+    # -------------------------------------------------------------------------------- work
+    def work(self, waypoints: FloatArray, base: FloatArray, step: float = WORK_STEP_RAD) -> float:
+        """J, mechanical work against gravity along the polyline (n, 6): the sum over joints and
+        steps of |tau_g(q_mid) * dq|, steps of at most ``step`` rad."""
+        total = 0.0
+        points = np.asarray(waypoints, dtype=np.float64)
+        for a, b in zip(points[:-1], points[1:], strict=True):
+            total += self.work_between(a, b, base, step)
+        return total
+
+    def work_between(
+        self, a: FloatArray, b: FloatArray, base: FloatArray, step: float = WORK_STEP_RAD
+    ) -> float:
+        """J, :meth:`work` of the straight joint motion ``a`` -> ``b`` ((6,) rad each)."""
+        delta = b - a
+        n = max(1, int(np.ceil(np.max(np.abs(delta)) / step)))
+        mids = a + (np.arange(n)[:, None] + 0.5) * (delta / n)
+        q = np.array(base, dtype=np.float64)
+        model, data, idx = self.model.model, self.model.data, self.idx
+        torque = np.empty((n, len(idx)))
+        for i in range(n):
+            q[idx] = mids[i]
+            torque[i] = pin.computeGeneralizedGravity(model, data, q)[idx]
+        return float(np.abs(torque * (delta / n)).sum())
+
+    def cost(self, waypoints: FloatArray, base: FloatArray, step: float = WORK_STEP_RAD) -> float:
+        """The objective of a polyline (n, 6): work (J) + weight * joint path length (rad)."""
+        points = np.asarray(waypoints, dtype=np.float64)
+        length = float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+        return self.work(points, base, step) + self.config.path_length_weight * length
+
+    # ---------------------------------------------------------------------------- free space
+    def plan_free(
+        self,
+        start: FloatArray,
+        goal: FloatArray,
+        ctx: CheckContext,
+        objective: str = "work",
+    ) -> FloatArray:
+        """A collision-free joint-space path from ``start`` to ``goal`` (both (6,) rad).
+
+        The direct segment is kept when it is valid at the joint resolution; otherwise RRT*
+        (seeded, capped by iterations, time and a cost threshold) and a greedy shortcut.
+
+        Args:
+            start: (6,) rad.
+            goal: (6,) rad.
+            ctx: what states are checked against.
+            objective: ``work`` (ours) or ``length`` (OMPL path length, for comparisons).
+
+        Returns:
+            (n, 6) rad waypoints from start to goal, n >= 2.
+
+        Raises:
+            PlanningError: invalid start or goal (with the reason), or no path found.
+        """
+        start = np.asarray(start, dtype=np.float64)
+        goal = np.asarray(goal, dtype=np.float64)
+        for name, arm in (("start", start), ("goal", goal)):
+            if not self.is_valid(arm, ctx):
+                msg = f"the {name} configuration is invalid: {self.explain(arm, ctx)}"
+                raise PlanningError(msg)
+        direct = np.vstack([start, goal])
+        if self.first_invalid(direct, ctx) is None:
+            self.stats.direct_segments += 1
+            return direct
+        resolutions = (self.config.rrt_check_resolution_rad, self.config.joint_resolution_rad)
+        for resolution in resolutions:
+            for attempt in range(self.config.rrt_attempts):
+                path = self._rrt_star(
+                    start, goal, ctx, self.config.seed + attempt, resolution, objective
+                )
+                if path is None:
+                    continue
+                path = self._shortcut(path, ctx, objective)
+                if self.first_invalid(path, ctx) is None:
+                    self.stats.rrt_segments += 1
+                    return path
+        msg = (
+            f"no collision-free path found by RRT* within {self.config.rrt_max_iterations} "
+            f"iterations / {self.config.rrt_time_limit_s} s "
+            f"(the straight segment is blocked: {self.explain(self._blocked(direct, ctx), ctx)})"
+        )
+        raise PlanningError(msg)
+
+    def _blocked(self, path: FloatArray, ctx: CheckContext) -> FloatArray:
+        state = self.first_invalid(path, ctx)
+        return path[0] if state is None else state
+
+    def _rrt_star(
+        self,
+        start: FloatArray,
+        goal: FloatArray,
+        ctx: CheckContext,
+        seed: int,
+        resolution: float,
+        objective: str,
+    ) -> FloatArray | None:
+        space = ob.RealVectorStateSpace(len(self.idx))
+        bounds = ob.RealVectorBounds(len(self.idx))
+        for i in range(len(self.idx)):
+            bounds.setLow(i, float(self.lower[i]))
+            bounds.setHigh(i, float(self.upper[i]))
+        space.setBounds(bounds)
+        # The seed generator is reset here, before any RNG of this solve is created, so the same
+        # request and state give the same plan whatever was planned before.
+        ou.RNG.setSeed(int(seed))
+        si = ob.SpaceInformation(space)
+        dim = len(self.idx)
+
+        def to_arm(state: ob.State) -> FloatArray:
+            return np.array([state[i] for i in range(dim)])
+
+        def valid(state: ob.State) -> bool:
+            return self.is_valid(to_arm(state), ctx)
+
+        si.setStateValidityChecker(valid)
+        si.setStateValidityCheckingResolution(resolution / space.getMaximumExtent())
+        si.setup()
+        pdef = ob.ProblemDefinition(si)
+        s, g = si.allocState(), si.allocState()
+        for i in range(dim):
+            s[i] = float(start[i])
+            g[i] = float(goal[i])
+        pdef.setStartAndGoalStates(s, g)
+        straight = np.vstack([start, goal])
+        if objective == "work":
+            obj: ob.OptimizationObjective = _WorkObjective(si, self, ctx.base, to_arm)
+            threshold = self.cost(straight, ctx.base, OBJECTIVE_STEP_RAD)
+        else:
+            obj = ob.PathLengthOptimizationObjective(si)
+            threshold = float(np.linalg.norm(goal - start))
+        obj.setCostThreshold(ob.Cost(threshold * self.config.rrt_cost_threshold_factor))
+        pdef.setOptimizationObjective(obj)
+        planner = og.RRTstar(si)
+        planner.setRange(self.config.rrt_range_rad)
+        planner.setGoalBias(self.config.rrt_goal_bias)
+        planner.setRewireFactor(self.config.rrt_rewire_factor)
+        planner.setProblemDefinition(pdef)
+        planner.setup()
+        iterations = 0
+        deadline = time.monotonic() + self.config.rrt_time_limit_s
+
+        def stop() -> bool:
+            nonlocal iterations
+            iterations += 1
+            return iterations > self.config.rrt_max_iterations or time.monotonic() > deadline
+
+        status = planner.solve(ob.PlannerTerminationCondition(stop))
+        self.stats.rrt_iterations += iterations
+        if not pdef.hasExactSolution() or "Exact" not in status.asString():
+            return None
+        path = pdef.getSolutionPath()
+        return np.array([to_arm(path.getState(i)) for i in range(path.getStateCount())])
+
+    def _shortcut(self, path: FloatArray, ctx: CheckContext, objective: str) -> FloatArray:
+        """Greedy shortcut: from each kept waypoint jump to the farthest later one reachable by a
+        valid straight segment that does not cost more than the detour it replaces."""
+
+        def cost(points: FloatArray) -> float:
+            if objective == "work":
+                return self.cost(points, ctx.base, OBJECTIVE_STEP_RAD)
+            return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+
+        out = [path[0]]
+        i = 0
+        while i < len(path) - 1:
+            for j in range(len(path) - 1, i, -1):
+                segment = np.vstack([path[i], path[j]])
+                if j == i + 1 or (
+                    cost(segment) <= cost(path[i : j + 1]) + 1e-9
+                    and self.first_invalid(segment, ctx, self.config.rrt_check_resolution_rad)
+                    is None
+                ):
+                    out.append(path[j])
+                    i = j
+                    break
+        return np.array(out)
+
+    # ------------------------------------------------------------------------------- goals
+    def solve_ik(
+        self,
+        frame: str,
+        position: FloatArray,
+        rotation: FloatArray | None,
+        seed_arm: FloatArray,
+        ctx: CheckContext,
+    ) -> FloatArray:
+        """A valid arm configuration placing ``frame`` at ``position`` (3,) m (and ``rotation``
+        (3, 3) if given) in base_link, on the same kinematic branch as ``seed_arm`` (6,) rad.
+
+        The target is approached from the seed's own pose in 5 cm steps (each IK seeded by the
+        previous one), so the solution keeps the seed's elbow and wrist branch; seeded random
+        restarts are the fallback.
+
+        Raises:
+            PlanningError: unreachable, or the solution collides (with the reason).
+        """
+        target = np.asarray(position, dtype=np.float64)
+        arm = self._ik_continuation(frame, target, rotation, seed_arm, ctx)
+        if arm is None:
+            try:
+                q = self.model.ik(
+                    frame,
+                    target,
+                    self.full(seed_arm, ctx.base),
+                    rotation=rotation,
+                    joints=ARM_JOINTS,
+                    restarts=self.config.ik_restarts,
+                    seed=self.config.seed,
+                )
+            except IKError as error:
+                raise PlanningError(str(error)) from error
+            arm = self.unwrap(self.arm(q), seed_arm)
+        if not self.is_valid(arm, ctx):
+            msg = (
+                f"placing {frame} at ({target[0]:.3f}, {target[1]:.3f}, {target[2]:.3f}) m is not "
+                f"possible without a collision: {self.explain(arm, ctx)}"
+            )
+            raise PlanningError(msg)
+        return arm
+
+    def _ik_continuation(
+        self,
+        frame: str,
+        target: FloatArray,
+        rotation: FloatArray | None,
+        seed_arm: FloatArray,
+        ctx: CheckContext,
+    ) -> FloatArray | None:
+        here = self.model.fk(self.full(seed_arm, ctx.base), frame)
+        n = max(1, int(np.ceil(np.linalg.norm(target - here[:3, 3]) / 0.05)))
+        arm = np.asarray(seed_arm, dtype=np.float64)
+        for i in range(1, n + 1):
+            point = here[:3, 3] + (target - here[:3, 3]) * (i / n)
+            try:
+                q = self.model.ik(
+                    frame,
+                    point,
+                    self.full(arm, ctx.base),
+                    rotation=rotation,
+                    joints=ARM_JOINTS,
+                    restarts=0,
+                    max_iterations=100,
+                )
+            except IKError:
+                return None
+            arm = self.unwrap(self.arm(q), arm)
+        return arm
+
+    # ---------------------------------------------------------------------------- cartesian
+    def plan_cartesian(
+        self,
+        start: FloatArray,
+        frame: str,
+        positions: Sequence[FloatArray],
+        rotations: Sequence[FloatArray | None],
+        ctx: CheckContext,
+    ) -> FloatArray:
+        """Follow Cartesian waypoints with ``frame``, IK seeded by the previous solution.
+
+        Args:
+            start: (6,) rad, current arm configuration (its ``frame`` pose need not be the
+                first waypoint exactly; the first step moves there).
+            frame: controlled frame, e.g. ``l_grinder_tip``.
+            positions: (3,) m each, in base_link, at most ``cartesian_step_m`` apart.
+            rotations: (3, 3) orientation of ``frame`` at each waypoint, or None for position
+                only.
+            ctx: what states are checked against (every joint step of the joint resolution).
+
+        Returns:
+            (n + 1, 6) rad: ``start`` then one configuration per waypoint.
+
+        Raises:
+            PlanningError: IK fails, a joint jumps more than ``max_joint_jump_rad`` between
+                waypoints, or a state collides (the message names the waypoint).
+        """
+        out = [np.asarray(start, dtype=np.float64)]
+        for k, (position, rotation) in enumerate(zip(positions, rotations, strict=True)):
+            previous = out[-1]
+            p = np.asarray(position, dtype=np.float64)
+            where = f"({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m"
+            try:
+                q = self.model.ik(
+                    frame,
+                    p,
+                    self.full(previous, ctx.base),
+                    rotation=rotation,
+                    joints=ARM_JOINTS,
+                    restarts=0,
+                    max_iterations=100,
+                )
+            except IKError as error:
+                msg = f"Cartesian path of {frame} breaks at waypoint {k} {where}: {error}"
+                raise PlanningError(msg) from error
+            arm = self.unwrap(self.arm(q), previous)
+            jump = np.abs(arm - previous)
+            j = int(np.argmax(jump))
+            if jump[j] > self.config.max_joint_jump_rad:
+                msg = (
+                    f"Cartesian path of {frame} breaks at waypoint {k} {where}: {ARM_JOINTS[j]} "
+                    f"would jump {jump[j]:.3f} rad (limit {self.config.max_joint_jump_rad} rad)"
+                )
+                raise PlanningError(msg)
+            bad = self.first_invalid(np.vstack([previous, arm]), ctx)
+            if bad is not None:
+                msg = (
+                    f"Cartesian path of {frame} is blocked at waypoint {k} {where}: "
+                    f"{self.explain(bad, ctx)}"
+                )
+                raise PlanningError(msg)
+            out.append(arm)
+            self.stats.cartesian_waypoints += 1
+        return np.array(out)
+
+    def plan_joint_sweep(
+        self, start: FloatArray, goal: FloatArray, ctx: CheckContext
+    ) -> FloatArray:
+        """The straight joint-space motion ``start`` -> ``goal`` (e.g. a digging sweep), which
+        must itself be valid: (2, 6) rad.
+
+        Raises:
+            PlanningError: a state along it is invalid (with the reason).
+        """
+        path = np.vstack([start, goal])
+        bad = self.first_invalid(path, ctx)
+        if bad is not None:
+            msg = f"the joint motion is blocked: {self.explain(bad, ctx)}"
+            raise PlanningError(msg)
+        return path
+
+
+class _WorkObjective(ob.OptimizationObjective):
+    """Mechanical work against gravity + a small path-length term, for RRT*."""
+
+    def __init__(
+        self,
+        si: ob.SpaceInformation,
+        planner: ArmPlanner,
+        base: FloatArray,
+        to_arm: object,
+    ) -> None:
+        super().__init__(si)
+        self._planner = planner
+        self._base = np.array(base, dtype=np.float64)
+        self._to_arm = to_arm
+        self._weight = planner.config.path_length_weight
+
+    def stateCost(self, state: ob.State) -> ob.Cost:
+        return ob.Cost(0.0)
+
+    def motionCost(self, s1: ob.State, s2: ob.State) -> ob.Cost:
+        a = self._to_arm(s1)  # type: ignore[operator]
+        b = self._to_arm(s2)  # type: ignore[operator]
+        work = self._planner.work_between(a, b, self._base, OBJECTIVE_STEP_RAD)
+        return ob.Cost(work + self._weight * float(np.linalg.norm(b - a)))
+
+    def motionCostHeuristic(self, s1: ob.State, s2: ob.State) -> ob.Cost:
+        a = self._to_arm(s1)  # type: ignore[operator]
+        b = self._to_arm(s2)  # type: ignore[operator]
+        return ob.Cost(self._weight * float(np.linalg.norm(b - a)))
