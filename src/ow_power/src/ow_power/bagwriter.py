@@ -4,7 +4,8 @@ A run is a sequence of bags ``<prefix>_<start>_<index>.bag`` (``<start>`` the wa
 time, ``YYYY-mm-dd-HH-MM-SS``; ``<index>`` 0000, 0001, ...). The file being written is named
 ``....bag.active`` and renamed to ``....bag`` once closed and indexed, so every ``.bag`` of a run
 is complete and readable by ``rosbag`` and rosbags, and a hard kill loses only the open file.
-A file is closed when its messages span ``split_duration_s`` of message time or hold
+A file is closed when its messages span ``split_duration_s`` of message time (messages stamped
+0, received before the simulation clock started, do not open that window) or hold
 ``split_size_mb`` of data, and on :meth:`SplitBagWriter.close`. Nothing is ever overwritten: a run
 whose name is taken gets a ``-1``, ``-2``... suffix, and rosbags opens files exclusively.
 
@@ -133,6 +134,9 @@ class SplitBagWriter:
                 self._close_file()
             if self._writer is None:
                 self._open_file(stamp_ns)
+            if self._file_start_ns == 0:
+                # Stamp 0 means the simulation clock had not started: the window opens later.
+                self._file_start_ns = stamp_ns
             assert self._writer is not None
             key = (topic, msgtype, md5sum)
             connection = self._connections.get(key)

@@ -1,0 +1,246 @@
+"""The power and recorder nodes on a real master, fed by joint states this test publishes.
+
+Constant torque x constant velocity gives a closed-form power and energy; the recorder is stopped
+with SIGINT (a complete bag) and with SIGKILL (only the open file lost).
+"""
+
+import json
+import re
+import signal
+import subprocess
+import time
+import xmlrpc.client
+from pathlib import Path
+
+import pytest
+import rospy
+from rosbags.highlevel import AnyReader
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Header, String
+
+from ow_msgs.msg import Operation, Power
+
+PERIOD_S = 0.01  # 100 Hz of simulation time, as the simulation publishes
+P0_W = 43.0
+
+
+def _wait(condition, what, timeout_s=20.0):
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            pytest.fail(f"timed out waiting for {what}")
+        time.sleep(0.02)
+
+
+def _wait_connected(stack, node, topics):
+    """Wait until ``node`` receives each of ``topics`` over an open connection (getBusInfo)."""
+    uri = stack.master.call("lookupNode", node)
+
+    def connected():
+        _, _, info = xmlrpc.client.ServerProxy(uri).getBusInfo("/pytest")
+        inbound = {c[4] for c in info if c[2] == "i" and c[5]}
+        return set(topics) <= inbound
+
+    _wait(connected, f"{node} connected to {topics}")
+
+
+def _wait_publishing(publisher, subscribers):
+    """Wait until our ``publisher`` has its connections too (the publisher side adds them last)."""
+    _wait(
+        lambda: publisher.get_num_connections() >= subscribers, f"{subscribers} on {publisher.name}"
+    )
+
+
+class Feeder:
+    """Publishes /clock and joint states (and operation markers) under a topic prefix."""
+
+    def __init__(self, joint_states_topic="/joint_states"):
+        self.clock = rospy.Publisher("/clock", Clock, queue_size=10)
+        self.joint_states = rospy.Publisher(joint_states_topic, JointState, queue_size=1000)
+        self.operation = rospy.Publisher("/arm/operation", Operation, queue_size=10, latch=True)
+
+    def step(self, k, names, velocity, effort, start_s=100.0):
+        stamp = rospy.Time.from_sec(start_s + k * PERIOD_S)
+        self.clock.publish(Clock(clock=stamp))
+        self.joint_states.publish(
+            JointState(
+                header=Header(stamp=stamp),
+                name=names,
+                position=[float(k)] * len(names),
+                velocity=velocity,
+                effort=effort,
+            )
+        )
+        time.sleep(0.002)  # ~500 Hz of wall time: no subscriber queue overflows
+        return stamp
+
+    def marker(self, stamp, op_id, event):
+        self.operation.publish(
+            Operation(
+                header=Header(stamp=stamp),
+                id=op_id,
+                name="dig_linear",
+                event=event,
+                parameters='{"depth": 0.01}',
+                success=True,
+                message="done",
+            )
+        )
+
+
+class Status:
+    def __init__(self, node_name):
+        self.latest = {}
+        self._sub = rospy.Subscriber(f"/{node_name}/status", String, self._on)
+
+    def _on(self, msg):
+        self.latest = json.loads(msg.data)
+
+
+def test_power_node_sums_the_configured_joints_by_name(ros_stack):
+    ros_stack.start_node(
+        "ow_power",
+        "power",
+        name="power_subset",
+        params={"auxiliary_power_w": 10.0, "joints": ["j_b", "j_a"]},
+        args=["joint_states:=/subset/joint_states", "power:=/subset/power"],
+        wait_for_topics=["/subset/power"],
+    )
+    received = []
+    sub = rospy.Subscriber("/subset/power", Power, received.append, queue_size=1000)
+    feeder = Feeder("/subset/joint_states")
+    _wait_connected(ros_stack, "/power_subset", ["/subset/joint_states"])
+    _wait_publishing(feeder.joint_states, 1)
+    _wait(lambda: sub.get_num_connections() > 0, "the /subset/power connection")
+    for k in range(101):  # 1 s; the joint order changes every message
+        names = ["j_a", "j_c", "j_b"] if k % 2 else ["j_c", "j_b", "j_a"]
+        # j_a: 20 N m x 0.1 rad/s = 2 W, j_b: -5 N m x 0.2 rad/s = -1 W, j_c (not summed) 90 W.
+        values = {"j_a": (0.1, 20.0), "j_b": (0.2, -5.0), "j_c": (3.0, 30.0)}
+        feeder.step(k, names, [values[n][0] for n in names], [values[n][1] for n in names])
+    _wait(
+        lambda: received and received[-1].header.stamp.to_sec() == pytest.approx(101.0),
+        "the power of the last joint state",
+    )
+    last = received[-1]
+    assert list(last.name) == ["j_b", "j_a"]
+    assert list(last.joint_power) == pytest.approx([-1.0, 2.0])
+    assert last.mechanical_power == pytest.approx(1.0)
+    assert last.mechanical_power_abs == pytest.approx(3.0)
+    assert last.total_power == pytest.approx(11.0)
+    assert last.electrical_power == pytest.approx(3.0 / 0.9 + 10.0)
+    assert last.mechanical_energy == pytest.approx(1.0)  # 1 W for 1 s of stamps
+    assert last.energy == pytest.approx(11.0)
+    sub.unregister()
+
+
+def test_sigint_leaves_a_complete_bag_that_ros_tools_and_the_analysis_read(ros_stack, tmp_path):
+    ros_stack.start_node(
+        "ow_power",
+        "power",
+        name="power",
+        params={"auxiliary_power_w": P0_W},
+        wait_for_topics=["/power"],
+    )
+    recorder = ros_stack.start_node(
+        "ow_power",
+        "record",
+        name="record_sigint",
+        params={
+            "output_dir": str(tmp_path),
+            "prefix": "sigint",
+            "split_duration_s": 0.0,
+            "topics": ["/power", "/joint_states", "/arm/operation"],
+        },
+        wait_for_topics=["/record_sigint/status"],
+    )
+    status = Status("record_sigint")
+    feeder = Feeder()
+    _wait_connected(ros_stack, "/power", ["/joint_states"])
+    _wait_connected(
+        ros_stack, "/record_sigint", ["/clock", "/power", "/joint_states", "/arm/operation"]
+    )
+    names = ["j_shou_pitch", "j_prox_pitch"]
+    n = 201  # 2 s
+    for k in range(n):
+        stamp = feeder.step(k, names, [0.1, -0.2], [50.0, 30.0])  # 5 W - 6 W = -1 W, |.| 11 W
+        if k == 50:
+            feeder.marker(stamp, 1, Operation.START)
+        if k == 150:
+            feeder.marker(stamp, 1, Operation.END)
+    _wait(lambda: status.latest.get("messages") == 2 * n + 2, f"{2 * n + 2} recorded messages")
+    recorder.signal(signal.SIGINT)
+    assert recorder.proc.wait(timeout=20) == 0
+    bags = sorted(tmp_path.glob("*.bag"))
+    assert len(bags) == 1 and not list(tmp_path.glob("*.active"))
+
+    with AnyReader(bags) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+    assert counts == {"/power": n, "/joint_states": n, "/arm/operation": 2}
+    info = subprocess.run(
+        ["rosbag", "info", str(bags[0])], capture_output=True, text=True, check=True
+    ).stdout
+    assert "ow_msgs/Power" in info and re.search(rf"/joint_states\s+{n} msgs", info)
+    echo = subprocess.run(
+        ["rostopic", "echo", "-b", str(bags[0]), "-n", "1", "/arm/operation"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    assert "dig_linear" in echo
+
+    out = subprocess.run(
+        ["rosrun", "ow_power", "analyze", str(tmp_path), "-o", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert "dig_linear" in out.stdout
+    ops = json.loads(next((tmp_path / "out").glob("*_operations.json")).read_text())
+    (op,) = ops["operations"]
+    assert op["duration_s"] == pytest.approx(1.0)
+    assert op["mechanical_energy_j"] == pytest.approx(-1.0)
+    assert op["mechanical_energy_abs_j"] == pytest.approx(11.0)
+    assert op["energy_wh"] == pytest.approx((P0_W - 1.0) / 3600.0)
+    assert list((tmp_path / "out").glob("*_power.png"))
+
+
+def test_sigkill_loses_only_the_open_file(ros_stack, tmp_path):
+    recorder = ros_stack.start_node(
+        "ow_power",
+        "record",
+        name="record_kill",
+        params={
+            "output_dir": str(tmp_path),
+            "prefix": "kill",
+            "split_duration_s": 1.0,
+            "topics": ["/kill/joint_states"],
+        },
+        wait_for_topics=["/record_kill/status"],
+    )
+    status = Status("record_kill")
+    feeder = Feeder("/kill/joint_states")
+    _wait_connected(ros_stack, "/record_kill", ["/clock", "/kill/joint_states"])
+    _wait_publishing(feeder.joint_states, 1)
+    n = 351  # 3.5 s of simulation time: three full files and an open one
+    for k in range(n):
+        feeder.step(k, ["j"], [0.0], [0.0], start_s=200.0)
+    _wait(
+        lambda: len(status.latest.get("closed", [])) >= 3 and status.latest.get("messages") == n,
+        "three closed bags",
+    )
+    closed = [Path(p) for p in status.latest["closed"]]
+    recorder.signal(signal.SIGKILL)
+    recorder.proc.wait(timeout=20)
+
+    bags = sorted(tmp_path.glob("*.bag"))
+    assert bags == closed
+    assert len(list(tmp_path.glob("*.bag.active"))) == 1  # the open file, lost
+    with AnyReader(bags) as reader:
+        positions = [
+            int(reader.deserialize(raw, c.msgtype).position[0]) for c, _, raw in reader.messages()
+        ]
+    # What was flushed is a gap-free prefix of what was sent, and at most the last ~1 s is lost.
+    assert positions == list(range(len(positions)))
+    assert n - len(positions) <= 1.0 / PERIOD_S + 20
+    subprocess.run(["rosbag", "info", str(bags[-1])], capture_output=True, check=True)
