@@ -1,0 +1,57 @@
+"""Guarded-move ground detection of the paper (section 3), free of ROS.
+
+The scoop tip's vertical velocity is smoothed by a moving average of five samples; the mean plus
+one standard deviation of the first five velocity samples is the threshold; contact is declared
+when the smoothed velocity exceeds it (the descent, a negative z velocity, slows down).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+
+
+class GroundDetector:
+    """Feed scoop-tip positions with their times; :meth:`update` says when ground is touched.
+
+    Args:
+        window: samples of the moving average and of the threshold (paper: 5).
+    """
+
+    def __init__(self, window: int = 5) -> None:
+        self.window = window
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every sample (call before each descent)."""
+        self._last: tuple[float, FloatArray] | None = None
+        self._velocities: deque[float] = deque(maxlen=self.window)
+        self._first: list[float] = []
+        self.threshold: float | None = None
+        self.contact: FloatArray | None = None
+
+    def update(self, t: float, position: FloatArray) -> bool:
+        """Add a sample of the tip at time ``t`` (s), ``position`` (3,) m in base_link.
+
+        Returns:
+            True once contact has been detected (``contact`` holds the tip position then).
+        """
+        if self.contact is not None:
+            return True
+        position = np.asarray(position, dtype=np.float64)
+        if self._last is not None and t > self._last[0]:
+            vz = float(position[2] - self._last[1][2]) / (t - self._last[0])
+            self._velocities.append(vz)
+            if len(self._first) < self.window:
+                self._first.append(vz)
+                if len(self._first) == self.window:
+                    self.threshold = float(np.mean(self._first) + np.std(self._first))
+            elif self.threshold is not None and float(np.mean(self._velocities)) > self.threshold:
+                self.contact = position.copy()
+        if self._last is None or t > self._last[0]:
+            self._last = (t, position)
+        return self.contact is not None
