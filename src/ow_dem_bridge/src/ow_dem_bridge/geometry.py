@@ -1,0 +1,174 @@
+"""Tool geometry for the DEM, read from the lander URDF (the one source of truth).
+
+The scoop is a set of thin boxes (plates); the DEM sees each plate as a rectangle of two triangles
+on its mid-plane (the plates are 1-2 mm thick, far thinner than a particle). The grinder is a set of
+coaxial cylinders along the link x axis; the DEM sees the surface of revolution of their union.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ow_dem_bridge.api import FloatArray
+from ow_dem_bridge.errors import GeometryError
+
+Triangle = tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float, float]]
+
+
+@dataclass(frozen=True)
+class ToolGeometry:
+    """A tool as the DEM sees it, in its link frame.
+
+    Attributes:
+        link: URDF link name, e.g. ``l_scoop``.
+        facets: triangles, vertices in m.
+        com: (3,) m, link centre of mass.
+        tip: (3,) m, the tool tip (origin of the fixed ``<link>_tip`` child link).
+    """
+
+    link: str
+    facets: tuple[Triangle, ...]
+    com: FloatArray
+    tip: FloatArray
+
+
+def _floats(text: str | None, default: str) -> FloatArray:
+    return np.array([float(v) for v in (text or default).split()], dtype=np.float64)
+
+
+def rpy_matrix(rpy: FloatArray) -> FloatArray:
+    """(3, 3) rotation of URDF fixed-axis roll, pitch, yaw (rad): R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    r, p, y = rpy
+    cr, sr, cp, sp, cy, sy = (
+        math.cos(r),
+        math.sin(r),
+        math.cos(p),
+        math.sin(p),
+        math.cos(y),
+        math.sin(y),
+    )
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def _origin(elem: ET.Element | None) -> tuple[FloatArray, FloatArray]:
+    if elem is None:
+        return np.zeros(3), np.eye(3)
+    return _floats(elem.get("xyz"), "0 0 0"), rpy_matrix(_floats(elem.get("rpy"), "0 0 0"))
+
+
+def _find_link(root: ET.Element, link: str, urdf: Path) -> ET.Element:
+    for elem in root.iter("link"):
+        if elem.get("name") == link:
+            return elem
+    msg = f"{urdf}: no link named {link!r}"
+    raise GeometryError(msg)
+
+
+def _tip(root: ET.Element, link: str, urdf: Path) -> FloatArray:
+    for joint in root.iter("joint"):
+        parent, child = joint.find("parent"), joint.find("child")
+        if (
+            parent is not None
+            and child is not None
+            and parent.get("link") == link
+            and child.get("link") == f"{link}_tip"
+        ):
+            return _origin(joint.find("origin"))[0]
+    msg = f"{urdf}: no fixed joint from {link!r} to {link + '_tip'!r} (the tool tip)"
+    raise GeometryError(msg)
+
+
+def _plate(xyz: FloatArray, rot: FloatArray, size: FloatArray) -> tuple[Triangle, Triangle]:
+    """Two triangles on the mid-plane of a box, spanned by its two largest dimensions."""
+    thin = int(np.argmin(size))
+    a, b = (i for i in range(3) if i != thin)
+    ea = rot[:, a] * size[a] / 2
+    eb = rot[:, b] * size[b] / 2
+    corners = [xyz - ea - eb, xyz + ea - eb, xyz + ea + eb, xyz - ea + eb]
+    c = [tuple(float(v) for v in p) for p in corners]
+    return (c[0], c[1], c[2]), (c[0], c[2], c[3])  # type: ignore[return-value]
+
+
+def _revolve(profile: list[tuple[float, float]], segments: int) -> list[Triangle]:
+    """Triangles of the surface of revolution about link x of a profile of (x m, radius m)."""
+    tris: list[Triangle] = []
+    angles = [2 * math.pi * k / segments for k in range(segments + 1)]
+    for (x0, r0), (x1, r1) in itertools.pairwise(profile):
+        if x0 == x1 and r0 == r1:
+            continue
+        for a0, a1 in itertools.pairwise(angles):
+            p00 = (x0, r0 * math.cos(a0), r0 * math.sin(a0))
+            p01 = (x0, r0 * math.cos(a1), r0 * math.sin(a1))
+            p10 = (x1, r1 * math.cos(a0), r1 * math.sin(a0))
+            p11 = (x1, r1 * math.cos(a1), r1 * math.sin(a1))
+            if r0 > 0:
+                tris.append((p00, p10, p01))
+            if r1 > 0:
+                tris.append((p01, p10, p11))
+    return tris
+
+
+def load_tool(urdf: Path, link: str, segments: int = 12) -> ToolGeometry:
+    """Read a tool link's collision primitives, centre of mass and tip from a URDF.
+
+    Args:
+        urdf: path of the URDF file.
+        link: ``l_scoop`` (boxes) or ``l_grinder`` (coaxial cylinders along link x).
+        segments: facets around a cylinder.
+
+    Returns:
+        The tool in its link frame.
+
+    Raises:
+        GeometryError: the link, its tip joint or usable primitives are missing.
+    """
+    root = ET.parse(urdf).getroot()
+    elem = _find_link(root, link, urdf)
+    inertial = elem.find("inertial")
+    com = _origin(inertial.find("origin") if inertial is not None else None)[0]
+    tris: list[Triangle] = []
+    cylinders: list[tuple[float, float, float]] = []  # (x_min, x_max, radius)
+    for col in elem.iter("collision"):
+        xyz, rot = _origin(col.find("origin"))
+        geom = col.find("geometry")
+        box = geom.find("box") if geom is not None else None
+        cyl = geom.find("cylinder") if geom is not None else None
+        if box is not None:
+            tris.extend(_plate(xyz, rot, _floats(box.get("size"), "0 0 0")))
+        elif cyl is not None:
+            axis = rot[:, 2]
+            if abs(abs(axis[0]) - 1) > 1e-3 or abs(xyz[1]) > 1e-9 or abs(xyz[2]) > 1e-9:
+                msg = f"{urdf}: {link} cylinder {col.get('name')!r} is not on the link x axis"
+                raise GeometryError(msg)
+            half = float(cyl.get("length", "0")) / 2
+            cylinders.append((xyz[0] - half, xyz[0] + half, float(cyl.get("radius", "0"))))
+    if cylinders:
+        tris.extend(_revolve(_union_profile(cylinders), segments))
+    if not tris:
+        msg = f"{urdf}: {link} has no box or cylinder collision primitives"
+        raise GeometryError(msg)
+    return ToolGeometry(link, tuple(tris), com, _tip(root, link, urdf))
+
+
+def _union_profile(cylinders: list[tuple[float, float, float]]) -> list[tuple[float, float]]:
+    """Outline (x, radius) of the union of coaxial cylinders, closed on the axis at both ends."""
+    xs = sorted({x for c in cylinders for x in c[:2]})
+    profile: list[tuple[float, float]] = [(xs[0], 0.0)]
+    for x0, x1 in itertools.pairwise(xs):
+        mid = 0.5 * (x0 + x1)
+        radius = max((c[2] for c in cylinders if c[0] <= mid <= c[1]), default=0.0)
+        profile.extend([(x0, radius), (x1, radius)])
+    profile.append((xs[-1], 0.0))
+    return profile
