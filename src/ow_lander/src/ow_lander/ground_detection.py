@@ -2,7 +2,9 @@
 
 The scoop tip's vertical velocity is smoothed by a moving average of five samples; the mean plus
 one standard deviation of the first five velocity samples is the threshold; contact is declared
-when the smoothed velocity exceeds it (the descent, a negative z velocity, slows down).
+when the smoothed velocity exceeds it (the descent, a negative z velocity, slows down). The
+standard deviation is floored at ``min_tolerance`` (ours, 1 mm/s): with a perfectly smooth first
+window the paper's rule would fire on rounding noise.
 """
 
 from __future__ import annotations
@@ -20,10 +22,12 @@ class GroundDetector:
 
     Args:
         window: samples of the moving average and of the threshold (paper: 5).
+        min_tolerance: m/s, smallest margin above the first window's mean velocity.
     """
 
-    def __init__(self, window: int = 5) -> None:
+    def __init__(self, window: int = 5, min_tolerance: float = 0.001) -> None:
         self.window = window
+        self.min_tolerance = min_tolerance
         self.reset()
 
     def reset(self) -> None:
@@ -49,7 +53,8 @@ class GroundDetector:
             if len(self._first) < self.window:
                 self._first.append(vz)
                 if len(self._first) == self.window:
-                    self.threshold = float(np.mean(self._first) + np.std(self._first))
+                    tolerance = max(float(np.std(self._first)), self.min_tolerance)
+                    self.threshold = float(np.mean(self._first)) + tolerance
             elif self.threshold is not None and float(np.mean(self._velocities)) > self.threshold:
                 self.contact = position.copy()
         if self._last is None or t > self._last[0]:

@@ -1,0 +1,225 @@
+"""Geometry of every operation's plan, re-checked at 0.01 rad (no ROS)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from ow_lander.config import PlannerConfig
+from ow_lander.description import ARM_JOINTS, STOWED, UNSTOWED
+from ow_lander.errors import PlanningError
+from ow_lander.model import ARM_LINKS, LanderModel
+from ow_lander.operations import DOCK_CENTRE, Operations, shoulder_yaw_for
+from ow_lander.planning import ArmPlanner, CheckContext
+from ow_lander.terrain import HeightMap
+
+GROUND = -0.155
+DIGGING = {
+    "descend",
+    "pass_1",
+    "shift",
+    "pass_2",
+    "retract",
+    "dip_in",
+    "cut",
+    "lift_out",
+    "sweep",
+    "guarded",
+}
+TOOL = {
+    "grind": "l_grinder",
+    "dig_linear": "l_scoop",
+    "dig_circular": "l_scoop",
+    "guarded_move": "l_scoop",
+}
+
+
+@pytest.fixture(scope="module")
+def ops():
+    model = LanderModel()
+    return Operations(ArmPlanner(model, PlannerConfig()))
+
+
+@pytest.fixture(scope="module")
+def terrain():
+    return HeightMap.flat(GROUND)
+
+
+def _q(model, pose):
+    return model.q_from(pose)
+
+
+def _tips(ops, q, path, frame):
+    return np.array([ops.model.position(ops.planner.full(a, q), frame) for a in path])
+
+
+def _check_collision_free(ops, q, terrain, plan):
+    for segment in plan.segments:
+        tool = TOOL.get(plan.operation) if segment.label in DIGGING else None
+        links = tuple(link for link in ARM_LINKS if link != tool)
+        ctx = CheckContext(q, terrain, links)
+        assert ops.planner.first_invalid(segment.waypoints, ctx, 0.01) is None, segment.label
+        previous = segment.waypoints[-1]
+    assert previous is not None
+
+
+@pytest.mark.parametrize(
+    ("x", "y", "expected"), [(2.0, 0.0, -0.02063), (1.65, 0.0, -0.02899), (1.46, 0.0, -0.03714)]
+)
+def test_shoulder_yaw_matches_oceanwaters(x, y, expected):
+    assert shoulder_yaw_for(x, y, -1.8, 1.8) == pytest.approx(expected, abs=1e-4)
+
+
+CASES = [
+    ("unstow", STOWED, None),
+    ("stow", UNSTOWED, None),
+    ("guarded_move", UNSTOWED, {"use_defaults": True}),
+    ("grind", UNSTOWED, {"use_defaults": True}),
+    (
+        "grind",
+        UNSTOWED,
+        dict(x=1.7, y=0.1, depth=0.04, length=0.3, parallel=False, ground_position=GROUND),
+    ),
+    ("dig_linear", UNSTOWED, {"use_defaults": True}),
+    ("dig_circular", UNSTOWED, {"use_defaults": True}),
+    (
+        "dig_circular",
+        UNSTOWED,
+        dict(x=1.6, y=0.1, depth=0.03, parallel=False, ground_position=GROUND),
+    ),
+    ("deliver_sample", UNSTOWED, {"use_defaults": True}),
+]
+
+
+@pytest.mark.parametrize(("name", "pose", "request_"), CASES)
+def test_plan_starts_here_and_is_collision_free(ops, terrain, name, pose, request_):
+    q = _q(ops.model, pose)
+    method = getattr(ops, f"plan_{name}")
+    plan = method(q, terrain) if request_ is None else method(q, terrain, request_)
+    assert np.allclose(plan.segments[0].waypoints[0], q[ops.model.arm_idx])
+    for a, b in zip(plan.segments, plan.segments[1:]):
+        assert np.allclose(a.waypoints[-1], b.waypoints[0])
+    _check_collision_free(ops, q, terrain, plan)
+
+
+@pytest.mark.parametrize(("parallel", "depth", "length"), [(True, 0.05, 0.6), (False, 0.03, 0.3)])
+def test_grind_passes_at_depth_and_length(ops, terrain, parallel, depth, length):
+    q = _q(ops.model, UNSTOWED)
+    plan = ops.plan_grind(
+        q,
+        terrain,
+        dict(x=1.65, y=0.0, depth=depth, length=length, parallel=parallel, ground_position=GROUND),
+    )
+    for label in ("pass_1", "pass_2"):
+        path = next(s for s in plan.segments if s.label == label).waypoints
+        tips = _tips(ops, q, path, "l_grinder_tip")
+        assert np.allclose(tips[:, 2], GROUND - depth, atol=0.01)
+        assert np.linalg.norm(tips[-1, :2] - tips[0, :2]) == pytest.approx(length, abs=0.01)
+        axis = [ops.model.fk(ops.planner.full(a, q), "l_grinder_tip")[:3, 0] for a in path]
+        assert np.allclose(axis, [0, 0, -1], atol=0.01)  # grinder vertical, pointing down
+
+
+def test_dig_linear_cuts_at_depth_for_length(ops, terrain):
+    q = _q(ops.model, UNSTOWED)
+    plan = ops.plan_dig_linear(
+        q, terrain, dict(x=1.6, y=0.0, depth=0.03, length=0.15, ground_position=GROUND)
+    )
+    path = next(s for s in plan.segments if s.label == "cut").waypoints
+    tips = _tips(ops, q, path, "l_scoop_tip")
+    assert np.allclose(tips[:, 2], GROUND - 0.03, atol=0.01)
+    assert np.linalg.norm(tips[-1, :2] - tips[0, :2]) == pytest.approx(0.15, abs=0.01)
+    assert _tips(ops, q, plan.segments[-1].waypoints[-1:], "l_scoop_tip")[0, 2] > GROUND
+
+
+@pytest.mark.parametrize("parallel", [True, False])
+def test_dig_circular_sweeps_120_degrees_to_depth(ops, terrain, parallel):
+    q = _q(ops.model, UNSTOWED)
+    plan = ops.plan_dig_circular(
+        q, terrain, dict(x=1.65, y=0.0, depth=0.02, parallel=parallel, ground_position=GROUND)
+    )
+    sweep = next(s for s in plan.segments if s.label == "sweep").waypoints
+    joint = ARM_JOINTS.index("j_dist_pitch" if parallel else "j_hand_yaw")
+    change = sweep[-1] - sweep[0]
+    assert abs(change[joint]) == pytest.approx(2 * math.pi / 3, abs=1e-6)
+    assert np.allclose(np.delete(change, joint), 0.0)
+    dense = np.linspace(sweep[0], sweep[-1], 241)
+    tips = _tips(ops, q, dense, "l_scoop_tip")
+    deepest = tips[np.argmin(tips[:, 2])]
+    assert np.allclose(deepest, [1.65, 0.0, GROUND - 0.02], atol=0.01)
+
+
+def test_deliver_ends_over_the_dock_tipped(ops, terrain):
+    q = _q(ops.model, UNSTOWED)
+    plan = ops.plan_deliver_sample(q, terrain, {"use_defaults": True})
+    X = ops.model.fk(ops.planner.full(plan.end, q), "l_scoop_tip")
+    assert np.allclose(X[:2, 3], DOCK_CENTRE[:2], atol=0.01)
+    assert X[2, 3] > DOCK_CENTRE[2]
+    # Tipped: the scoop's mouth (+x) points down, its bottom (+z) no longer faces down.
+    assert X[2, 0] < -0.7
+    assert X[2, 2] > -0.5
+
+
+def test_unstow_ends_unstowed(ops, terrain):
+    plan = ops.plan_unstow(_q(ops.model, STOWED), terrain)
+    assert np.allclose(plan.end, [UNSTOWED[j] for j in ARM_JOINTS])
+
+
+def test_same_request_same_plan(ops, terrain):
+    q = _q(ops.model, UNSTOWED)
+    a = ops.plan_deliver_sample(q, terrain, {"use_defaults": True})
+    b = ops.plan_deliver_sample(q, terrain, {"use_defaults": True})
+    for sa, sb in zip(a.segments, b.segments, strict=True):
+        assert np.array_equal(sa.waypoints, sb.waypoints)
+
+
+BAD = [
+    (
+        "plan_grind",
+        dict(x=1.6, y=0, depth=-0.1, length=0.2, parallel=True, ground_position=GROUND),
+        "depth=-0.100 m must not be negative",
+    ),
+    (
+        "plan_grind",
+        dict(x=1.6, y=0, depth=0.2, length=0.2, parallel=True, ground_position=GROUND),
+        "deeper than the grinder can go (max 0.14 m)",
+    ),
+    (
+        "plan_grind",
+        dict(x=0.8, y=0.2, depth=0.05, length=0.2, parallel=True, ground_position=GROUND),
+        "closer than the arm plane offset",
+    ),
+    (
+        "plan_dig_linear",
+        dict(x=1.6, y=0, depth=0.02, length=-1, ground_position=GROUND),
+        "length=-1.000 m must be in (0, 1.0] m",
+    ),
+    (
+        "plan_dig_circular",
+        dict(x=math.nan, y=0, depth=0.02, parallel=True, ground_position=GROUND),
+        "x=nan is not a finite number",
+    ),
+    (
+        "plan_guarded_move",
+        dict(x=2, y=0, z=0.3, direction_x=0, direction_y=0, direction_z=0, search_distance=0.5),
+        "zero vector",
+    ),
+    (
+        "plan_guarded_move",
+        dict(x=2, y=0, z=0.3, direction_x=0, direction_y=0, direction_z=1, search_distance=-1),
+        "search_distance=-1.000 m must be > 0",
+    ),
+    (
+        "plan_guarded_move",
+        dict(
+            x=0.0, y=-2.0, z=0.3, direction_x=0, direction_y=0, direction_z=1, search_distance=0.5
+        ),
+        "outside the joint limits",
+    ),
+]
+
+
+@pytest.mark.parametrize(("method", "request_", "message"), BAD)
+def test_bad_requests_name_the_value_and_limit(ops, terrain, method, request_, message):
+    with pytest.raises(PlanningError) as error:
+        getattr(ops, method)(_q(ops.model, UNSTOWED), terrain, request_)
+    assert message in str(error.value)

@@ -1,0 +1,104 @@
+"""Free-space planning: direct segment, RRT* with the work objective, determinism (no ROS)."""
+
+import numpy as np
+import pytest
+
+from ow_lander.config import ArmServicesConfig, PlannerConfig
+from ow_lander.description import UNSTOWED
+from ow_lander.errors import ConfigError, PlanningError
+from ow_lander.model import LanderModel
+from ow_lander.planning import ArmPlanner, CheckContext, densify
+from ow_lander.terrain import HeightMap
+
+
+@pytest.fixture(scope="module")
+def planner():
+    return ArmPlanner(LanderModel(), PlannerConfig(rrt_time_limit_s=2.0))
+
+
+@pytest.fixture(scope="module")
+def ctx(planner):
+    return CheckContext(planner.model.q_from(UNSTOWED), HeightMap.flat(-0.155))
+
+
+def _blocked_goal(planner, ctx):
+    rng = np.random.default_rng(1)
+    start = planner.arm(ctx.base)
+    while True:
+        goal = rng.uniform(planner.lower, planner.upper)
+        if (
+            planner.is_valid(goal, ctx)
+            and planner.first_invalid(np.vstack([start, goal]), ctx) is not None
+        ):
+            return goal
+
+
+def test_densify_keeps_waypoints_and_resolution():
+    path = densify(np.array([[0.0, 0.0], [0.1, -0.05], [0.1, 0.0]]), 0.01)
+    assert np.max(np.abs(np.diff(path, axis=0))) <= 0.01 + 1e-12
+    assert any(np.allclose(p, [0.1, -0.05]) for p in path)
+
+
+def test_direct_segment_kept_when_valid(planner, ctx):
+    start = planner.arm(ctx.base)
+    goal = start + np.array([0.2, 0.0, 0.0, 0.1, 0.0, 0.0])
+    assert np.array_equal(planner.plan_free(start, goal, ctx), np.vstack([start, goal]))
+
+
+def test_rrt_star_finds_a_valid_repeatable_path(planner, ctx):
+    start, goal = planner.arm(ctx.base), _blocked_goal(planner, ctx)
+    a = planner.plan_free(start, goal, ctx)
+    b = planner.plan_free(start, goal, ctx)
+    assert np.array_equal(a, b)
+    assert len(a) > 2 and np.allclose(a[0], start) and np.allclose(a[-1], goal)
+    assert planner.first_invalid(a, ctx, 0.01) is None
+
+
+def test_work_is_gravity_work(planner, ctx):
+    start = planner.arm(ctx.base)
+    up = start.copy()
+    up[1] += 0.3  # shoulder pitch lifts or lowers the whole arm
+    work = planner.work(np.vstack([start, up]), ctx.base)
+    energy = abs(
+        planner.model.potential_energy(planner.full(up, ctx.base))
+        - planner.model.potential_energy(ctx.base)
+    )
+    assert work == pytest.approx(energy, rel=0.02)
+
+
+def test_invalid_goal_is_explained(planner, ctx):
+    start = planner.arm(ctx.base)
+    goal = start.copy()
+    goal[1] = 5.0
+    with pytest.raises(PlanningError, match="j_shou_pitch=5.000 rad is outside"):
+        planner.plan_free(start, goal, ctx)
+
+
+@pytest.mark.parametrize(
+    ("values", "message"),
+    [
+        ({"bogus": 1}, "unknown parameter 'bogus'"),
+        ({"planner": {"seed": 0}}, "'planner/seed' must be > 0"),
+        ({"planner": {"rrt_range_rad": "far"}}, "'planner/rrt_range_rad' must be a number"),
+        ({"timing": {"velocity_scale": 2.0}}, "'timing/velocity_scale' must be in (0, 1]"),
+        ({"timing": {"acceleration_limits": {"j_x": 1.0}}}, "unknown arm joint"),
+        ({"plan_and_execute": 1}, "'plan_and_execute' must be true or false"),
+    ],
+)
+def test_config_errors_name_the_key(values, message):
+    with pytest.raises(ConfigError) as error:
+        ArmServicesConfig.from_dict(values)
+    assert message in str(error.value)
+
+
+def test_config_defaults_and_overrides():
+    config = ArmServicesConfig.from_dict(
+        {
+            "plan_and_execute": True,
+            "planner": {"seed": 7},
+            "timing": {"acceleration_limits": {"j_shou_yaw": 0.5}},
+        }
+    )
+    assert config.plan_and_execute and config.planner.seed == 7
+    assert config.timing.acceleration_limits["j_shou_yaw"] == 0.5
+    assert config.timing.acceleration_limits["j_prox_pitch"] == 0.2

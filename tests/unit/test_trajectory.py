@@ -1,0 +1,116 @@
+"""Time parameterisation, CSV round trip and the trajectory store (no ROS)."""
+
+import numpy as np
+import pytest
+
+from ow_lander.errors import TrajectoryError
+from ow_lander.ground_detection import GroundDetector
+from ow_lander.trajectory import PathSegment, TrajectoryStore, read_csv, time_parameterize
+
+JOINTS = ("a", "b")
+VMAX = np.array([0.2, 0.4])
+AMAX = np.array([0.2, 0.2])
+
+
+def _timed(segments, period=0.05):
+    return time_parameterize(segments, JOINTS, VMAX, AMAX, period, "test")
+
+
+@pytest.mark.parametrize(
+    "waypoints",
+    [
+        [[0.0, 0.0], [1.0, 0.5]],
+        [[0.0, 0.0], [0.01, 0.0]],
+        [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]],
+        [[0.0, 0.0], [0.3, 0.3], [0.6, 0.61], [0.9, 0.9]],
+    ],
+)
+def test_limits_respected_and_waypoints_reached(waypoints):
+    traj = _timed([PathSegment("s", np.array(waypoints))])
+    assert np.allclose(traj.positions[0], waypoints[0])
+    assert np.allclose(traj.positions[-1], waypoints[-1])
+    assert np.all(np.abs(traj.velocities) <= VMAX * (1 + 1e-9))
+    finite_difference = np.diff(traj.positions, axis=0) / np.diff(traj.times)[:, None]
+    assert np.all(np.abs(finite_difference) <= VMAX * 1.001)
+    assert np.all(np.diff(traj.times) > 0)
+    assert np.allclose(traj.velocities[-1], 0.0)
+
+
+def test_speed_scale_slows_a_segment():
+    path = np.array([[0.0, 0.0], [1.0, 0.0]])
+    fast = _timed([PathSegment("s", path)])
+    slow = _timed([PathSegment("s", path, 0.25)])
+    assert slow.duration > 2 * fast.duration
+    assert np.all(np.max(np.abs(slow.velocities), axis=0) <= 0.25 * VMAX * (1 + 1e-9))
+
+
+def test_corner_stops_the_arm():
+    traj = _timed([PathSegment("s", np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]]))])
+    corner = np.argmin(np.linalg.norm(traj.positions - [1.0, 0.0], axis=1))
+    assert np.allclose(traj.velocities[corner], 0.0, atol=1e-9)
+
+
+def test_csv_round_trip_and_sampling(tmp_path):
+    traj = _timed(
+        [
+            PathSegment("approach", np.array([[0.0, 0.0], [0.5, 0.2]])),
+            PathSegment("cut", np.array([[0.5, 0.2], [0.5, 0.6]])),
+        ]
+    )
+    store = TrajectoryStore(tmp_path)
+    path = store.save(traj)
+    back = read_csv(path)
+    assert back.joints == JOINTS and back.operation == "test"
+    assert np.allclose(back.positions, traj.positions, atol=1e-6)
+    assert back.segments == traj.segments
+    t = 0.5 * (back.times[3] + back.times[4])
+    assert np.allclose(back.sample(t), 0.5 * (back.positions[3] + back.positions[4]))
+    assert back.segment_span("cut")[1] == pytest.approx(back.duration)
+
+
+def test_store_deletes_only_its_own_files(tmp_path):
+    store = TrajectoryStore(tmp_path)
+    mine = store.save(_timed([PathSegment("s", np.array([[0.0, 0.0], [0.1, 0.1]]))]))
+    theirs = tmp_path / "notes.csv"
+    theirs.write_text("keep")
+    assert store.latest() == mine
+    assert store.delete_written() == 1
+    assert theirs.exists() and not mine.exists()
+    with pytest.raises(TrajectoryError, match="no trajectory written"):
+        store.latest()
+
+
+@pytest.mark.parametrize(
+    ("name", "message"),
+    [
+        ("", "no trajectory file name"),
+        ("missing.csv", "unknown trajectory file"),
+        ("../escape.csv", "not in the trajectory directory"),
+        ("/etc/passwd", "not in"),
+    ],
+)
+def test_store_resolve_refuses(tmp_path, name, message):
+    with pytest.raises(TrajectoryError, match=message):
+        TrajectoryStore(tmp_path / "t").resolve(name)
+
+
+def test_malformed_csv_is_rejected(tmp_path):
+    path = tmp_path / "bad.csv"
+    path.write_text("time,segment,a,v_a\n0,s,1\n")
+    with pytest.raises(TrajectoryError, match="columns"):
+        read_csv(path)
+
+
+def test_ground_detector_fires_when_descent_stops():
+    detector = GroundDetector()
+    z, t = 0.3, 0.0
+    for _ in range(20):
+        t += 0.1
+        z -= 0.005
+        assert not detector.update(t, np.array([2.0, 0.0, z]))
+    for _ in range(10):
+        t += 0.1
+        if detector.update(t, np.array([2.0, 0.0, z])):
+            break
+    assert detector.contact is not None
+    assert detector.contact[2] == pytest.approx(z)
