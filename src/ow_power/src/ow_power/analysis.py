@@ -489,6 +489,8 @@ def plot_power(result: Analysis, png_path: Path | str, title: str | None = None)
         label="sum tau*omega (eq. 2 without P0)",
     )
     ax.axhline(0.0, color="0.5", lw=0.5)
+    low, high = ax.get_ylim()
+    ax.set_ylim(low, high + 0.15 * (high - low))  # room for the operation labels
     colors = [plt.get_cmap("tab10")(i) for i in range(10)]
     for i, op in enumerate(result.summary.itertuples(index=False)):
         color = colors[i % len(colors)]
