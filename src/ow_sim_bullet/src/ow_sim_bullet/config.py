@@ -174,7 +174,7 @@ class SimConfig:
     terrain_force_params: Mapping[str, Any] = field(default_factory=dict)
     joint_state_rate_hz: float = 100.0
     clock_rate_hz: float = 100.0
-    tf_rate_hz: float = 50.0
+    tf_rate_hz: float = 30.0
     wrench_rate_hz: float = 50.0
     tool_state_rate_hz: float = 10.0
     terrain_publish_period: float = 0.5

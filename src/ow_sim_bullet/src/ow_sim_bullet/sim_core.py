@@ -538,6 +538,8 @@ class BulletSim:
         k = self.names.index(joint)
         self._kp[k], self._ki[k], self._kd[k] = gains.p, gains.i, gains.d
         self._i_clamp[k] = self._effort_limit[k] if gains.i_clamp is None else gains.i_clamp
+        #: dt * diag(d + c): the dampers' share of the implicit step matrix.
+        self._implicit_damping = self.dt * np.diag(self._kd + self._damping)
 
     def _joint(self, joint: str) -> int:
         try:
@@ -616,7 +618,7 @@ class BulletSim:
         bias = self._bias(q, v)
         momentum = inertia @ v
         v_next = np.linalg.solve(
-            inertia + dt * np.diag(self._kd + self._damping),
+            inertia + self._implicit_damping,
             momentum + dt * (tau_pi + self._kd * v_set - bias),
         )
         effort = tau_pi + self._kd * (v_set - v_next)
@@ -670,6 +672,13 @@ class BulletSim:
         changed_cols: list[int] = []
         floor = self._terrain.floor + 1e-3
         for track in self._tools.values():
+            low, high = pb.getAABB(self.robot, track.link_index, physicsClientId=self.client)
+            c0 = max(int((low[0] - hm.origin_x) / hm.resolution), 0)
+            c1 = min(int((high[0] - hm.origin_x) / hm.resolution) + 2, cols)
+            r0 = max(int((low[1] - hm.origin_y) / hm.resolution), 0)
+            r1 = min(int((high[1] - hm.origin_y) / hm.resolution) + 2, rows)
+            if r0 >= r1 or c0 >= c1 or low[2] > self._heights[r0:r1, c0:c1].max() + hm.resolution:
+                continue
             state = pb.getLinkState(self.robot, track.link_index, physicsClientId=self.client)
             rotation = np.asarray(pb.getMatrixFromQuaternion(state[5])).reshape(3, 3)
             points = track.surface_points @ rotation.T + np.asarray(state[4])

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import threading
 import time
+import warnings
+import warnings
 from collections import deque
 from collections.abc import Callable
 from functools import partial
@@ -119,17 +121,25 @@ class SimNode:
         self._paused = config.start_paused
         self._shutdown = False
 
-        self._clock_pub = rospy.Publisher("/clock", Clock, queue_size=10)
-        self._joint_pub = rospy.Publisher("/joint_states", JointState, queue_size=100)
-        self._damping_pub = rospy.Publisher("~joint_damping", JointState, queue_size=100)
-        self._tf_pub = rospy.Publisher("/tf", TFMessage, queue_size=100)
-        self._wrench_pubs = {
-            tool: rospy.Publisher(f"~{tool}_wrench", WrenchStamped, queue_size=100) for tool in TOOLS
-        }
-        self._tip_ground_pub = rospy.Publisher("~scoop_tip_ground", PointStamped, queue_size=100)
-        self._tool_pubs = {
-            tool: rospy.Publisher(f"~{tool}_state", ToolStateMsg, queue_size=10) for tool in TOOLS
-        }
+        # High-rate outputs publish synchronously (queue_size None): rospy's queued publishing
+        # hands every message to a writer thread, which costs ~110 us a message against ~30 us,
+        # and the simulator runs at tens of times real time. A subscriber that cannot keep up
+        # slows the simulation down instead of losing messages.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", SyntaxWarning)
+            self._clock_pub = rospy.Publisher("/clock", Clock, queue_size=None)
+            self._joint_pub = rospy.Publisher("/joint_states", JointState, queue_size=None)
+            self._damping_pub = rospy.Publisher("~joint_damping", JointState, queue_size=None)
+            self._tf_pub = rospy.Publisher("/tf", TFMessage, queue_size=None)
+            self._wrench_pubs = {
+                tool: rospy.Publisher(f"~{tool}_wrench", WrenchStamped, queue_size=None)
+                for tool in TOOLS
+            }
+            self._tip_ground_pub = rospy.Publisher("~scoop_tip_ground", PointStamped, queue_size=None)
+            self._tool_pubs = {
+                tool: rospy.Publisher(f"~{tool}_state", ToolStateMsg, queue_size=None)
+                for tool in TOOLS
+            }
         self._terrain_pub = rospy.Publisher("~terrain", HeightMapMsg, queue_size=1, latch=True)
         self._static_tf = tf2_ros.StaticTransformBroadcaster()
         self._static_tf.sendTransform(
@@ -364,15 +374,18 @@ class SimNode:
                     pace_wall, pace_sim = time.monotonic(), self.sim.time
 
     def _publish(self, force: bool = False) -> None:
+        """Publish what is due at the current sim time (messages are only built for subscribers)."""
         sim = self.sim
         now = sim.time
         if self._clock_tick.due(now) or force:
             self._clock_pub.publish(Clock(clock=conversions.stamp(now)))
         sample = sim.sample
         if self._joint_tick.due(sample.time) or force:
-            self._joint_pub.publish(conversions.joint_state_msg(sample))
-            self._damping_pub.publish(conversions.joint_state_msg(sample, damping=True))
-        if self._tf_tick.due(sample.time) or force:
+            if self._joint_pub.get_num_connections():
+                self._joint_pub.publish(conversions.joint_state_msg(sample))
+            if self._damping_pub.get_num_connections():
+                self._damping_pub.publish(conversions.joint_state_msg(sample, damping=True))
+        if (self._tf_tick.due(sample.time) or force) and self._tf_pub.get_num_connections():
             positions = sample.position
             self._tf_pub.publish(
                 TFMessage(
@@ -383,14 +396,17 @@ class SimNode:
                 )
             )
         if self._wrench_tick.due(sample.time) or force:
+            # Snapshots are taken even without subscribers: they reset the force averages.
             for tool, publisher in self._wrench_pubs.items():
                 snapshot = sim.tool_snapshot(tool)
                 self._snapshots[tool] = snapshot
-                publisher.publish(conversions.wrench_msg(snapshot))
-            self._tip_ground_pub.publish(conversions.tip_ground_msg(self._snapshots["scoop"]))
+                if publisher.get_num_connections():
+                    publisher.publish(conversions.wrench_msg(snapshot))
+            if self._tip_ground_pub.get_num_connections():
+                self._tip_ground_pub.publish(conversions.tip_ground_msg(self._snapshots["scoop"]))
         if self._tool_tick.due(sample.time) or force:
             for tool, publisher in self._tool_pubs.items():
-                if tool in self._snapshots:
+                if tool in self._snapshots and publisher.get_num_connections():
                     publisher.publish(conversions.tool_state_msg(self._snapshots[tool]))
         self._publish_terrain_if_due()
 

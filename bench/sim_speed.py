@@ -1,0 +1,180 @@
+"""Real-time factor of the simulation node with every ROS output on and subscribed.
+
+Starts a private master and ``rosrun ow_sim_bullet sim`` with ``real_time_factor: 0`` and measures
+sim seconds per wall second (a) while the arm holds the stowed pose and (b) while the scoop is
+pushed into the terrain and dragged through it, carving a trench. One JSON line per metric.
+Bar (issue 4): at least 30x real time on the project's 2-core machine.
+
+    source env.sh && python bench/sim_speed.py
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import threading
+import time
+
+import numpy as np
+import rospy
+from geometry_msgs.msg import WrenchStamped
+from ow_lander.testing import RosStack, private_master
+from ow_msgs.msg import ToolState
+from rosgraph_msgs.msg import Clock
+from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+#: rad, scoop level 5 cm above the flat ground at -0.155 (tip at x 1.70, y 0, z -0.10).
+ABOVE = {
+    "j_shou_yaw": -0.0308,
+    "j_shou_pitch": 1.3162,
+    "j_prox_pitch": -2.3062,
+    "j_dist_pitch": 0.99,
+    "j_hand_yaw": 0.0,
+    "j_scoop_yaw": 1.6016,
+}
+#: rad, the same with the tip 5 cm below the ground.
+BELOW = {**ABOVE, "j_shou_pitch": 1.0905, "j_prox_pitch": -2.2945, "j_dist_pitch": 1.204}
+OUTPUTS = [
+    "/joint_states",
+    "/sim/joint_damping",
+    "/tf",
+    "/tf_static",
+    "/sim/scoop_tip_ground",
+    "/sim/grinder_wrench",
+    "/sim/grinder_state",
+    "/sim/terrain",
+]
+
+
+class ClockWatch:
+    """Wall time at which /clock first reached given sim times."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.sim = 0.0
+        self.marks: dict[float, float] = {}
+        self.targets: list[float] = []
+
+    def on_clock(self, msg: Clock) -> None:
+        now = time.perf_counter()
+        with self.lock:
+            self.sim = msg.clock.to_sec()
+            for target in self.targets:
+                if target not in self.marks and self.sim >= target:
+                    self.marks[target] = now
+
+    def wait(self, target: float, timeout_s: float = 300.0) -> float:
+        with self.lock:
+            self.targets.append(target)
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            with self.lock:
+                if target in self.marks:
+                    return self.marks[target]
+            time.sleep(0.01)
+        msg = f"sim time never reached {target} s (at {self.sim} s)"
+        raise RuntimeError(msg)
+
+
+def line(metric: str, value: float, unit: str, **extra: object) -> None:
+    print(json.dumps({"metric": metric, "value": round(value, 2), "unit": unit, **extra}), flush=True)
+
+
+def trajectory(points: list[tuple[float, dict[str, float]]]) -> JointTrajectory:
+    msg = JointTrajectory()
+    msg.joint_names = list(ABOVE)
+    for t, pose in points:
+        point = JointTrajectoryPoint()
+        point.positions = [pose[j] for j in msg.joint_names]
+        point.time_from_start = rospy.Duration.from_sec(t)
+        msg.points.append(point)
+    return msg
+
+
+def main() -> None:
+    with private_master() as master:
+        os.environ["ROS_MASTER_URI"] = master.uri
+        rospy.init_node("sim_speed_bench", disable_signals=True)
+        stack = RosStack(master)
+        try:
+            stack.start_node(
+                "ow_sim_bullet",
+                "sim",
+                params={"real_time_factor": 0.0, "terrain": "flat:-0.155", "start_paused": True},
+                wait_for_services=["/sim/resume"],
+            )
+            watch = ClockWatch()
+            rospy.Subscriber("/clock", Clock, watch.on_clock, queue_size=100)
+            forces: list[float] = []
+            depths: list[float] = []
+            rospy.Subscriber(
+                "/sim/scoop_wrench",
+                WrenchStamped,
+                lambda m: forces.append(abs(m.wrench.force.z) + abs(m.wrench.force.x)),
+                queue_size=1000,
+            )
+            rospy.Subscriber(
+                "/sim/scoop_state", ToolState, lambda m: depths.append(m.depth), queue_size=1000
+            )
+            counts = {topic: 0 for topic in OUTPUTS}
+            for topic in OUTPUTS:
+                rospy.Subscriber(
+                    topic, rospy.AnyMsg, lambda _, t=topic: counts.__setitem__(t, counts[t] + 1),
+                    queue_size=1000,
+                )
+            commands = rospy.Publisher("/sim/joint_trajectory", JointTrajectory, queue_size=1)
+            deadline = time.monotonic() + 10.0
+            while commands.get_num_connections() == 0 and time.monotonic() < deadline:
+                time.sleep(0.05)
+            time.sleep(1.0)  # let every subscription connect before the clock runs
+
+            # (a) holding the stowed pose.
+            rospy.ServiceProxy("/sim/resume", Trigger)()
+            wall_a0 = watch.wait(5.0)
+            wall_a1 = watch.wait(65.0)
+            line("sim_rtf_holding", 60.0 / (wall_a1 - wall_a0), "x real time", window_sim_s=60.0)
+
+            # (b) scoop into the terrain, then dragged sideways through it for 60 s.
+            rospy.ServiceProxy("/sim/pause", Trigger)()
+            time.sleep(0.5)
+            start = watch.sim
+            points = [(10.0, ABOVE), (15.0, BELOW)]
+            for k in range(12):
+                yaw = -0.15 if k % 2 == 0 else 0.10
+                points.append((20.0 + 5.0 * k, {**BELOW, "j_shou_yaw": yaw}))
+            msg = trajectory(points)
+            msg.header.stamp = rospy.Time.from_sec(start + 1.0)
+            commands.publish(msg)
+            time.sleep(0.5)
+            forces.clear()
+            depths.clear()
+            rospy.ServiceProxy("/sim/resume", Trigger)()
+            wall_b0 = watch.wait(start + 18.0)
+            n_forces = len(forces)
+            n_depths = len(depths)
+            wall_b1 = watch.wait(start + 78.0)
+            window_forces = np.array(forces[n_forces:])
+            window_depths = np.array(depths[n_depths:])
+            line(
+                "sim_rtf_digging",
+                60.0 / (wall_b1 - wall_b0),
+                "x real time",
+                window_sim_s=60.0,
+                scoop_contact_fraction=round(float(np.mean(window_forces > 0.1)), 3),
+                scoop_mean_force_n=round(float(window_forces.mean()), 2),
+                scoop_below_surface_fraction=round(float(np.mean(window_depths > 0.0)), 3),
+            )
+            line(
+                "sim_messages_received",
+                float(sum(counts.values())),
+                "messages",
+                per_topic=counts,
+            )
+        finally:
+            stack.shutdown()
+            rospy.signal_shutdown("bench done")
+
+
+if __name__ == "__main__":
+    main()
