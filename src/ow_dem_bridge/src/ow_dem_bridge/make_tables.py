@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from ow_dem_bridge.balovnev import BalovnevParams, balovnev_forces
 from ow_dem_bridge.errors import DemRunError
 from ow_dem_bridge.geometry import ToolGeometry, load_tool
 from ow_dem_bridge.table import FORCE_COLUMNS, ForceTable, Series, write_table
@@ -344,6 +345,49 @@ def build_table(digs: Iterable[Job], progress_step: float) -> ForceTable:
     return ForceTable.from_series(series)
 
 
+def phase_mean(path: Path, phase: str) -> np.ndarray:
+    """(6,) mean wrench of a dig's samples in one motion phase ("linear", "rotate_in", ...)."""
+    with path.open(newline="") as fh:
+        rows = [
+            [float(r[k]) for k in ("Fx_N", "Fy_N", "Fz_N", "Tx_Nm", "Ty_Nm", "Tz_Nm")]
+            for r in csv.DictReader(fh)
+            if r["phase"] == phase
+        ]
+    return np.asarray(rows).mean(axis=0) if rows else np.zeros(6)
+
+
+def balovnev_comparison(digs: Iterable[Job], scenario: Scenario) -> list[dict[str, Any]]:
+    """DEM vs Balovnev for the same cut: mean scoop force over the straight part of each dig.
+
+    Balovnev is evaluated at the dig's depth and gravity twice: with the OceanWATERS constants
+    (soil 1700 kg/m3) and with the bulk density of the DEM bed (particle density times 0.6).
+
+    Returns:
+        One record per scoop dig: material, depth m, DEM (-Fx, Fz) N, Balovnev (H, V) N.
+    """
+    out = []
+    for job in digs:
+        if job.tool != "scoop" or job.out_csv is None:
+            continue
+        mean = phase_mean(job.out_csv, "linear")
+        soil = scenario.materials[job.material]
+        base = BalovnevParams(gravity=scenario.gravity)
+        bulk = replace(base, soil_density=0.6 * soil.density)
+        out.append(
+            {
+                "material": job.material,
+                "depth_m": job.depth,
+                "dem_resisting_N": round(float(-mean[0]), 3),
+                "dem_vertical_N": round(float(mean[2]), 3),
+                "balovnev_H_V_N": [round(v, 3) for v in balovnev_forces(job.depth, base)],
+                "balovnev_bulk_density_H_V_N": [
+                    round(v, 3) for v in balovnev_forces(job.depth, bulk)
+                ],
+            }
+        )
+    return sorted(out, key=lambda r: (r["material"], r["depth_m"]))
+
+
 def yade_version() -> str:
     """The installed YADE version string (empty if unknown)."""
     try:
@@ -457,6 +501,7 @@ def regenerate(
             "materials": {str(m): asdict(s) for m, s in scenario.materials.items()},
         },
         "runs": {**settle_summaries, **dig_summaries},
+        "dem_vs_balovnev": balovnev_comparison(digs, scenario),
     }
     out_table.with_suffix(".json").write_text(json.dumps(record, indent=1, sort_keys=True) + "\n")
     return record

@@ -352,6 +352,11 @@ class Motion:
         self.recorder.phase = name
         self.velocity, self.omega, self.pivot = Vector3(velocity), Vector3(omega), Vector3(pivot)
         ids = self.tool.ids
+        # Kinematic engines only set what they drive: a TranslationEngine leaves the angular
+        # velocity of the previous rotation in place, and the facets would keep spinning.
+        for i in ids:
+            O.bodies[i].state.vel = Vector3.Zero
+            O.bodies[i].state.angVel = Vector3.Zero
         engines: list[Any] = []
         if velocity.norm() > 0:
             engines.append(
