@@ -23,6 +23,7 @@ DEFAULT_RECORD_TOPICS: tuple[str, ...] = (
     "/arm/operation",
     "/sim/scoop_wrench",
     "/sim/grinder_wrench",
+    "/sim/joint_damping",
 )
 
 #: Bag compressions the recorder writes. LZ4 is refused: ROS's own lz4 reader cannot read the
