@@ -1,4 +1,4 @@
-"""The arm services through real service calls (planning only: /joint_states comes from the test)."""
+"""The arm services through real service calls (planning only; the test feeds /joint_states)."""
 
 import math
 import threading
@@ -6,6 +6,11 @@ import threading
 import numpy as np
 import pytest
 import rospy
+from sensor_msgs.msg import JointState
+
+from ow_lander.description import ARM_JOINTS, UNSTOWED
+from ow_lander.model import LanderModel
+from ow_lander.trajectory import read_csv
 from ow_msgs.srv import (
     DeliverSample,
     DigCircular,
@@ -16,11 +21,6 @@ from ow_msgs.srv import (
     Stow,
     Unstow,
 )
-from sensor_msgs.msg import JointState
-
-from ow_lander.description import ARM_JOINTS, SCOOP_TIP_FRAME, UNSTOWED
-from ow_lander.model import LanderModel
-from ow_lander.trajectory import read_csv
 
 UNSTOWED_STATE = {**UNSTOWED, "j_grinder": 0.0, "j_ant_pan": 0.0, "j_ant_tilt": 0.0}
 

@@ -1,5 +1,6 @@
 """Geometry of every operation's plan, re-checked at 0.01 rad (no ROS)."""
 
+import itertools
 import math
 
 import numpy as np
@@ -97,7 +98,7 @@ def test_plan_starts_here_and_is_collision_free(ops, terrain, name, pose, reques
     method = getattr(ops, f"plan_{name}")
     plan = method(q, terrain) if request_ is None else method(q, terrain, request_)
     assert np.allclose(plan.segments[0].waypoints[0], q[ops.model.arm_idx])
-    for a, b in zip(plan.segments, plan.segments[1:]):
+    for a, b in itertools.pairwise(plan.segments):
         assert np.allclose(a.waypoints[-1], b.waypoints[0])
     _check_collision_free(ops, q, terrain, plan)
 

@@ -70,7 +70,7 @@ def test_invalid_goal_is_explained(planner, ctx):
     start = planner.arm(ctx.base)
     goal = start.copy()
     goal[1] = 5.0
-    with pytest.raises(PlanningError, match="j_shou_pitch=5.000 rad is outside"):
+    with pytest.raises(PlanningError, match=r"j_shou_pitch=5\.000 rad is outside"):
         planner.plan_free(start, goal, ctx)
 
 

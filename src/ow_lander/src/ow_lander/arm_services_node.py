@@ -33,6 +33,19 @@ from typing import Any
 import numpy as np
 import rospy
 from geometry_msgs.msg import Point
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+
+from ow_lander.config import ArmServicesConfig
+from ow_lander.conversions import height_map_from_msg, joint_positions, jsonable, request_to_dict
+from ow_lander.description import ALL_JOINTS, ARM_JOINTS, BASE_FRAME, SCOOP_TIP_FRAME
+from ow_lander.errors import ConfigError, OwLanderError, PlanningError, TrajectoryError
+from ow_lander.ground_detection import GroundDetector
+from ow_lander.model import LanderModel
+from ow_lander.operations import OperationPlan, Operations
+from ow_lander.planning import ArmPlanner
+from ow_lander.terrain import HeightMap
+from ow_lander.trajectory import Trajectory, TrajectoryStore, read_csv, time_parameterize
 from ow_msgs.msg import GuardedMoveResult, Operation
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.srv import (
@@ -53,19 +66,6 @@ from ow_msgs.srv import (
     Unstow,
     UnstowResponse,
 )
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64
-
-from ow_lander.config import ArmServicesConfig
-from ow_lander.conversions import height_map_from_msg, joint_positions, jsonable, request_to_dict
-from ow_lander.description import ALL_JOINTS, ARM_JOINTS, BASE_FRAME, SCOOP_TIP_FRAME
-from ow_lander.errors import ConfigError, OwLanderError, PlanningError, TrajectoryError
-from ow_lander.ground_detection import GroundDetector
-from ow_lander.model import LanderModel
-from ow_lander.operations import OperationPlan, Operations
-from ow_lander.planning import ArmPlanner
-from ow_lander.terrain import HeightMap
-from ow_lander.trajectory import Trajectory, TrajectoryStore, read_csv, time_parameterize
 
 
 def command_topic(joint: str) -> str:
@@ -245,7 +245,7 @@ class ArmServicesNode:
             except (OwLanderError, ValueError) as error:
                 response.success = False
                 response.message = f"{name} failed: {error}"
-            except Exception as error:  # noqa: BLE001 - a handler must answer, never die
+            except Exception as error:
                 rospy.logerr("arm_services: %s crashed: %r", name, error)
                 response.success = False
                 response.message = f"{name} failed with an internal error: {error!r}"
@@ -318,7 +318,7 @@ class ArmServicesNode:
             except TrajectoryError as error:
                 response.success = False
                 response.message = str(error)
-            except Exception as error:  # noqa: BLE001 - a handler must answer, never die
+            except Exception as error:
                 rospy.logerr("arm_services: publish_trajectory crashed: %r", error)
                 response.success = False
                 response.message = f"publish_trajectory failed with an internal error: {error!r}"
@@ -396,7 +396,7 @@ class ArmServicesNode:
                 )
             if guarded and not settling and guarded[0] <= t <= guarded[1]:
                 tip = self.model.position(q, SCOOP_TIP_FRAME)
-                if detector.update(now.to_sec(), tip):
+                if detector.update(now.to_sec(), tip) and detector.contact is not None:
                     result.ground_found = True
                     result.ground_position = detector.contact
                     self._publish_ground(True, detector.contact)

@@ -2,8 +2,8 @@
 
 ``ArmServicesConfig.from_dict(rospy.get_param("~"))`` is the only place parameters enter; every
 other module receives the frozen dataclasses below. Missing keys keep their defaults, unknown keys
-and bad values raise :class:`~ow_lander.errors.ConfigError` naming the key. ``config/arm_services.yaml``
-lists every key with its unit.
+and bad values raise :class:`~ow_lander.errors.ConfigError` naming the key.
+``config/arm_services.yaml`` lists every key with its unit.
 """
 
 from __future__ import annotations
@@ -258,5 +258,6 @@ def _check_ranges(config: ArmServicesConfig) -> None:
             msg = f"parameter 'timing/{key}' must be in (0, 1], got {value}"
             raise ConfigError(msg)
     if not 0 <= config.planner.rrt_goal_bias <= 1:
-        msg = f"parameter 'planner/rrt_goal_bias' must be in [0, 1], got {config.planner.rrt_goal_bias}"
+        bias = config.planner.rrt_goal_bias
+        msg = f"parameter 'planner/rrt_goal_bias' must be in [0, 1], got {bias}"
         raise ConfigError(msg)

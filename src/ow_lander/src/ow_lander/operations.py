@@ -433,7 +433,7 @@ class Operations:
         # Dip in and lift out at 45 degrees between 5 cm above the ground and the cut's depth.
         rise = ground + 0.05 - float(cut_start[2])
         entry = cut_start - heading * rise + [0.0, 0.0, rise]
-        above = entry + [0.0, 0.0, APPROACH_HEIGHT - 0.05]
+        above = entry + np.array([0.0, 0.0, APPROACH_HEIGHT - 0.05])
         out = cut_end + heading * rise + [0.0, 0.0, rise]
         ctx = self._ctx(q, terrain)
         dig = self._ctx(q, terrain, SCOOP_LINK)
@@ -445,7 +445,7 @@ class Operations:
             ("dip_in", cut_start, dig),
             ("cut", cut_end, dig),
             ("lift_out", out, dig),
-            ("retract", out + [0.0, 0.0, APPROACH_HEIGHT - 0.05], dig),
+            ("retract", out + np.array([0.0, 0.0, APPROACH_HEIGHT - 0.05]), dig),
         )
         for label, point, check in steps:
             path = self._cartesian(arm, SCOOP_TIP_FRAME, point, level, check)

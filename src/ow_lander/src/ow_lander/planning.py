@@ -14,6 +14,7 @@ is not used: it ignores the robot's dynamics and reduces to path length.
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -83,7 +84,7 @@ def densify(waypoints: FloatArray, resolution: float) -> FloatArray:
     ``resolution`` rad; every waypoint is kept."""
     points = np.asarray(waypoints, dtype=np.float64)
     out = [points[:1]]
-    for a, b in zip(points[:-1], points[1:], strict=True):
+    for a, b in itertools.pairwise(points):
         n = max(1, int(np.ceil(np.max(np.abs(b - a)) / resolution - 1e-9)))
         w = np.arange(1, n + 1)[:, None] / n
         out.append(a + w * (b - a))
@@ -169,7 +170,7 @@ class ArmPlanner:
         steps of |tau_g(q_mid) * dq|, steps of at most ``step`` rad."""
         total = 0.0
         points = np.asarray(waypoints, dtype=np.float64)
-        for a, b in zip(points[:-1], points[1:], strict=True):
+        for a, b in itertools.pairwise(points):
             total += self.work_between(a, b, base, step)
         return total
 
