@@ -113,8 +113,8 @@ class Scenario:
     read_steps: int = 5
     reads_per_row: int = 4
     progress_step: float = 0.01
-    scoop_bed: tuple[float, float, float] = (0.66, 0.18, 0.07)
-    grinder_bed: tuple[float, float, float] = (0.3, 0.18, 0.08)
+    scoop_bed: tuple[float, float, float] = (0.66, 0.18, 0.09)
+    grinder_bed: tuple[float, float, float] = (0.3, 0.18, 0.1)
     scoop_motion: dict[str, float] = field(
         default_factory=lambda: {
             "x_cut": 0.22,

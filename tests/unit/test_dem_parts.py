@@ -1,0 +1,104 @@
+"""Tool geometry from the URDF, bridge parameters, message conversions."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from ow_dem_bridge.config import BridgeConfig
+from ow_dem_bridge.conversions import quaternion_matrix, tool_state_from_msg
+from ow_dem_bridge.errors import ConfigError, GeometryError
+from ow_dem_bridge.geometry import load_tool
+from ow_lander.description import URDF_PATH
+
+
+def test_scoop_plates_from_the_urdf() -> None:
+    scoop = load_tool(URDF_PATH, "l_scoop")
+    assert len(scoop.facets) == 2 * 7  # seven plates, two triangles each
+    assert np.allclose(scoop.tip, [0.1, 0.0, 0.08])
+    vertices = np.array([v for tri in scoop.facets for v in tri])
+    # About 0.127 long (x), 0.082 wide (y), 0.077 deep (z): spec section 1.4.
+    assert np.allclose(vertices.min(axis=0), [-0.033, -0.0418, -0.0006], atol=2e-3)
+    assert np.allclose(vertices.max(axis=0), [0.0985, 0.0418, 0.0815], atol=2e-3)
+
+
+def test_grinder_is_a_stepped_surface_of_revolution() -> None:
+    grinder = load_tool(URDF_PATH, "l_grinder", segments=12)
+    assert np.allclose(grinder.tip, [0.16, 0.0, 0.0])
+    vertices = np.array([v for tri in grinder.facets for v in tri])
+    radius = np.hypot(vertices[:, 1], vertices[:, 2])
+    assert radius.max() == pytest.approx(0.075, abs=1e-9)
+    near_tip = radius[vertices[:, 0] > 0.125]
+    assert near_tip.max() == pytest.approx(0.04, abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("text", "link", "pattern"),
+    [
+        ("<robot name='r'><link name='a'/></robot>", "l_scoop", "no link named 'l_scoop'"),
+        ("<robot name='r'><link name='l_scoop'/></robot>", "l_scoop", "no box or cylinder"),
+        (
+            "<robot name='r'><link name='l_scoop'><collision><geometry><box size='1 1 0.1'/>"
+            "</geometry></collision></link></robot>",
+            "l_scoop",
+            "no fixed joint from 'l_scoop' to 'l_scoop_tip'",
+        ),
+    ],
+)
+def test_geometry_errors(tmp_path: Path, text: str, link: str, pattern: str) -> None:
+    path = tmp_path / "r.urdf"
+    path.write_text(text)
+    with pytest.raises(GeometryError, match=pattern):
+        load_tool(path, link)
+
+
+def test_bridge_config_defaults_and_overrides() -> None:
+    default = BridgeConfig.from_dict({})
+    assert default.model == "table"
+    assert [(t.tool, t.state_topic, t.wrench_topic) for t in default.tools] == [
+        ("scoop", "/sim/scoop_state", "/dem/scoop_wrench"),
+        ("grinder", "/sim/grinder_state", "/dem/grinder_wrench"),
+    ]
+    one = BridgeConfig.from_dict({"tools": {"scoop": {"wrench_topic": "/x"}}})
+    assert [(t.tool, t.wrench_topic) for t in one.tools] == [("scoop", "/x")]
+
+
+@pytest.mark.parametrize(
+    ("params", "pattern"),
+    [
+        ({"modle": "table"}, "unknown parameter.*modle"),
+        ({"model": "bridge"}, "model: 'bridge' is not one of none, table, balovnev"),
+        ({"model_params": [1]}, "model_params must be a mapping"),
+        ({"tools": {"drill": {}}}, "tools.drill: unknown tool"),
+        ({"tools": {"scoop": {"state_topic": ""}}}, "tools.scoop.state_topic must be a topic"),
+        ({"tools": {"scoop": {"topic": "/a"}}}, r"tools.scoop: unknown key\(s\) topic"),
+    ],
+)
+def test_bridge_config_errors_name_the_key(params: dict[str, Any], pattern: str) -> None:
+    with pytest.raises(ConfigError, match=pattern):
+        BridgeConfig.from_dict(params)
+
+
+def test_tool_state_from_msg_gives_tip_velocity_in_the_link_frame() -> None:
+    from ow_msgs.msg import ToolState as ToolStateMsg
+
+    msg = ToolStateMsg()
+    msg.tool, msg.link, msg.material, msg.depth, msg.progress = "scoop", "l_scoop", 2, 0.03, 0.1
+    # Link turned 90 deg about base z; origin moving along base x; spinning about base z.
+    half = math.pi / 4
+    msg.pose.orientation.z, msg.pose.orientation.w = math.sin(half), math.cos(half)
+    msg.twist.linear.x = 0.1
+    msg.twist.angular.z = 1.0
+    tip = np.array([0.1, 0.0, 0.08])
+    state = tool_state_from_msg(msg, tip)
+    R = quaternion_matrix(0, 0, math.sin(half), math.cos(half))
+    v_tip_base = np.array([0.1, 0, 0]) + np.cross([0, 0, 1.0], R @ tip)
+    assert np.allclose(state.velocity, R.T @ v_tip_base)
+    # The spin moves the tip at 0.1 m/s along -x of base, cancelling the translation.
+    assert np.allclose(state.velocity, 0.0)
+    assert np.allclose(state.angular_velocity, [0, 0, 1.0])
+    assert (state.tool, state.material, state.depth, state.progress) == ("scoop", 2, 0.03, 0.1)
