@@ -309,8 +309,7 @@ class MissionRunner:
         c = self.config
         params: dict[str, dict[str, Any]] = {
             "sim": {
-                "terrain": c.terrain,
-                "seed": c.seed,
+                "terrain": c.terrain_spec,
                 "real_time_factor": c.real_time_factor,
                 "terrain_forces": c.terrain_forces,
             },
@@ -460,7 +459,7 @@ class MissionRunner:
             f"Result: **{'success' if report.success else 'FAILED'}**"
             + (f": {report.error}" if report.error else ""),
             "",
-            f"Terrain `{report.config.terrain}`, seed {report.config.seed}, trench at "
+            f"Terrain `{report.config.terrain_spec}`, trench at "
             f"({report.config.x:.3f}, {report.config.y:.3f}) m in base_link; ground found at "
             + (f"z = {report.ground_z:.4f} m." if report.ground_z is not None else "(none)."),
             "",

@@ -38,8 +38,9 @@ class MissionConfig:
 
     Attributes:
         name: label of the run in the report.
-        terrain: terrain spec of the simulation (``flat:<z>``, ``europa:<seed>``, ``file:<path>``).
-        seed: random seed of the simulation.
+        terrain: terrain spec of the simulation (``flat:<z>``, ``europa:<seed>``, ``file:<path>``),
+            or plain ``europa`` for the procedural terrain of ``seed``.
+        seed: seed of the procedural terrain when ``terrain`` is plain ``europa``.
         x: m, trench start (the selected location).
         y: m.
         expected_ground: m, ground z expected at (x, y); only sets the guarded move's start height.
@@ -154,6 +155,11 @@ class MissionConfig:
             renders=raw.get("renders", d.renders),
             node_params={str(k): dict(v) for k, v in node_params.items()},
         )
+
+    @property
+    def terrain_spec(self) -> str:
+        """The simulation's terrain spec, with ``seed`` filled in for plain ``europa``."""
+        return f"europa:{self.seed}" if self.terrain == "europa" else self.terrain
 
     @classmethod
     def load(cls, path: Path) -> MissionConfig:
