@@ -18,11 +18,12 @@ import time
 import numpy as np
 import rospy
 from geometry_msgs.msg import WrenchStamped
-from ow_lander.testing import RosStack, private_master
-from ow_msgs.msg import ToolState
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from ow_lander.testing import RosStack, private_master
+from ow_msgs.msg import ToolState
 
 #: rad, scoop level 5 cm above the flat ground at -0.155 (tip at x 1.70, y 0, z -0.10).
 ABOVE = {
@@ -78,7 +79,9 @@ class ClockWatch:
 
 
 def line(metric: str, value: float, unit: str, **extra: object) -> None:
-    print(json.dumps({"metric": metric, "value": round(value, 2), "unit": unit, **extra}), flush=True)
+    print(
+        json.dumps({"metric": metric, "value": round(value, 2), "unit": unit, **extra}), flush=True
+    )
 
 
 def trajectory(points: list[tuple[float, dict[str, float]]]) -> JointTrajectory:
@@ -120,7 +123,9 @@ def main() -> None:
             counts = {topic: 0 for topic in OUTPUTS}
             for topic in OUTPUTS:
                 rospy.Subscriber(
-                    topic, rospy.AnyMsg, lambda _, t=topic: counts.__setitem__(t, counts[t] + 1),
+                    topic,
+                    rospy.AnyMsg,
+                    lambda _, t=topic: counts.__setitem__(t, counts[t] + 1),
                     queue_size=1000,
                 )
             commands = rospy.Publisher("/sim/joint_trajectory", JointTrajectory, queue_size=1)

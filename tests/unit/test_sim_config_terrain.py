@@ -57,10 +57,16 @@ def test_yaml_style_parameters_are_accepted():
         ({"terrain_material": 300}, "terrain_material must be an integer 0..255"),
         ({"terrain_file_center": [1.0]}, "terrain_file_center must be a list of two numbers"),
         ({"terrain_png_height_range": [1.0, -1.0]}, "terrain_png_height_range must be increasing"),
-        ({"gains": {"j_elbow": {"p": 1, "i": 0, "d": 0}}}, "gains has unknown joint(s) ['j_elbow']"),
+        (
+            {"gains": {"j_elbow": {"p": 1, "i": 0, "d": 0}}},
+            "gains has unknown joint(s) ['j_elbow']",
+        ),
         ({"gains": {"j_shou_yaw": {"p": 1, "i": 0}}}, "gains.j_shou_yaw.d is missing"),
         ({"gains": {"j_shou_yaw": {"p": -1, "i": 0, "d": 0}}}, "gains.j_shou_yaw.p must be >= 0"),
-        ({"initial_positions": {"j_shou_yaw": "up"}}, "initial_positions.j_shou_yaw must be a number"),
+        (
+            {"initial_positions": {"j_shou_yaw": "up"}},
+            "initial_positions.j_shou_yaw must be a number",
+        ),
     ],
 )
 def test_bad_parameters_name_the_key(raw, message):
@@ -127,7 +133,7 @@ def test_bad_terrain_specs(spec, message):
 
 def test_bad_terrain_files(tmp_path):
     (tmp_path / "map.txt").write_text("1 2 3")
-    with pytest.raises(TerrainSpecError, match="unknown type '.txt'"):
+    with pytest.raises(TerrainSpecError, match=r"unknown type '\.txt'"):
         parse_terrain_spec(f"file:{tmp_path / 'map.txt'}")
     np.save(tmp_path / "line.npy", np.zeros(5))
     with pytest.raises(TerrainSpecError, match="2-D numeric grid"):

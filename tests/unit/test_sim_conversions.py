@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
-from ow_lander.description import URDF_PATH
 
+from ow_lander.description import URDF_PATH
 from ow_sim_bullet.conversions import joint_frames, quaternion_from_matrix, stamp
 
 

@@ -6,8 +6,8 @@ import numpy as np
 import pinocchio as pin
 import pybullet as pb
 import pytest
-from ow_lander.description import ARM_JOINTS, STOWED, UNSTOWED, URDF_PATH
 
+from ow_lander.description import ARM_JOINTS, STOWED, UNSTOWED, URDF_PATH
 from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.errors import CommandError
 from ow_sim_bullet.sim_core import BulletSim
@@ -58,9 +58,7 @@ def europa_gravity_torque(q_by_name: dict[str, float]) -> dict[str, float]:
     for name, value in q_by_name.items():
         q[model.joints[model.getJointId(name)].idx_q] = value
     tau = pin.computeGeneralizedGravity(model, data, q)
-    return {
-        model.names[i]: float(tau[model.joints[i].idx_v]) for i in range(1, model.njoints)
-    }
+    return {model.names[i]: float(tau[model.joints[i].idx_v]) for i in range(1, model.njoints)}
 
 
 def test_stowed_pose_drifts_less_than_1_mrad_in_60_s(sim):

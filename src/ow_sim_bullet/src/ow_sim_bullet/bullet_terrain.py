@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 import pybullet as pb
+
 from ow_lander.terrain import HeightMap
 
 FloatArray = npt.NDArray[np.float64]
@@ -119,7 +120,11 @@ class BulletTerrain:
                 # long as the two bodies do not move apart. Re-adding the tile to the collision
                 # world (what a filter change does) drops them.
                 pb.setCollisionFilterGroupMask(
-                    self._bodies[(r0, c0)], -1, self._group, self._mask, physicsClientId=self._client
+                    self._bodies[(r0, c0)],
+                    -1,
+                    self._group,
+                    self._mask,
+                    physicsClientId=self._client,
                 )
                 refreshed += 1
         return refreshed

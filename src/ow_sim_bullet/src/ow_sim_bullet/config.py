@@ -13,7 +13,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ow_lander.description import ALL_JOINTS, STOWED
-
 from ow_sim_bullet.errors import ConfigError
 
 #: N m / rad, N m / (rad s), N m s / rad: spec section 4.2 (OceanWATERS v6.0 lander_control.yaml).
@@ -217,7 +216,12 @@ class SimConfig:
         for key in positive:
             if key in raw:
                 kwargs[key] = _positive(raw[key], key)
-        for key in ("real_time_factor", "terrain_yield_force", "carve_step", "terrain_publish_period"):
+        for key in (
+            "real_time_factor",
+            "terrain_yield_force",
+            "carve_step",
+            "terrain_publish_period",
+        ):
             if key in raw:
                 kwargs[key] = _non_negative(raw[key], key)
         for key in ("terrain_file_center", "terrain_png_height_range"):
@@ -236,7 +240,11 @@ class SimConfig:
             kwargs["start_paused"] = raw["start_paused"]
         if "terrain_material" in raw:
             material = raw["terrain_material"]
-            if isinstance(material, bool) or not isinstance(material, int) or not 0 <= material < 256:
+            if (
+                isinstance(material, bool)
+                or not isinstance(material, int)
+                or not 0 <= material < 256
+            ):
                 msg = f"terrain_material must be an integer 0..255, got {material!r}"
                 raise ConfigError(msg)
             kwargs["terrain_material"] = material
@@ -249,7 +257,9 @@ class SimConfig:
             kwargs["gains"] = _gains(raw["gains"], defaults.gains)
         if "initial_positions" in raw:
             kwargs["initial_positions"] = _initial(raw["initial_positions"], defaults)
-        png_low, png_high = kwargs.get("terrain_png_height_range", defaults.terrain_png_height_range)
+        png_low, png_high = kwargs.get(
+            "terrain_png_height_range", defaults.terrain_png_height_range
+        )
         if png_high <= png_low:
             msg = f"terrain_png_height_range must be increasing, got {[png_low, png_high]}"
             raise ConfigError(msg)

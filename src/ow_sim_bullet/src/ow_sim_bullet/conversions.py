@@ -13,11 +13,11 @@ from dataclasses import dataclass
 import genpy
 import numpy as np
 from geometry_msgs.msg import PointStamped, TransformStamped, WrenchStamped
+from sensor_msgs.msg import JointState
+
 from ow_lander.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.msg import ToolState as ToolStateMsg
-from sensor_msgs.msg import JointState
-
 from ow_sim_bullet.sim_core import FloatArray, JointSample, ToolSnapshot
 
 Quaternion = tuple[float, float, float, float]  # x, y, z, w
@@ -114,7 +114,14 @@ def joint_frames(urdf_text: str) -> list[JointFrame]:
         axis_element = element.find("axis")
         axis = None
         if kind != "fixed":
-            raw = np.array([float(v) for v in (axis_element.get("xyz", "1 0 0") if axis_element is not None else "1 0 0").split()])
+            raw = np.array(
+                [
+                    float(v)
+                    for v in (
+                        axis_element.get("xyz", "1 0 0") if axis_element is not None else "1 0 0"
+                    ).split()
+                ]
+            )
             unit = raw / np.linalg.norm(raw)
             axis = (float(unit[0]), float(unit[1]), float(unit[2]))
         parent, child = element.find("parent"), element.find("child")

@@ -6,7 +6,7 @@ class SimError(Exception):
 
 
 class ConfigError(SimError):
-    """A node parameter is missing, of the wrong type or out of range (the message names the key)."""
+    """A node parameter is missing, of the wrong type or out of range (names the key)."""
 
 
 class TerrainSpecError(SimError):

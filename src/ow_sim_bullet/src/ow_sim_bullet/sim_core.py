@@ -36,6 +36,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 import pybullet as pb
+
 from ow_dem_bridge.api import ToolState, Wrench
 from ow_lander.description import (
     ALL_JOINTS,
@@ -47,7 +48,6 @@ from ow_lander.description import (
     URDF_PATH,
 )
 from ow_lander.terrain import HeightMap
-
 from ow_sim_bullet.bullet_terrain import BulletTerrain
 from ow_sim_bullet.config import PidGains, SimConfig
 from ow_sim_bullet.errors import CommandError, ConfigError
@@ -172,7 +172,12 @@ def physical_inertias(urdf_text: str, margin: float = 1e-3) -> tuple[str, list[s
 def _rpy_matrix(roll: float, pitch: float, yaw: float) -> FloatArray:
     """URDF fixed-axis roll-pitch-yaw -> rotation matrix (Rz Ry Rx)."""
     cr, sr, cp, sp, cy, sy = (
-        math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
+        math.cos(roll),
+        math.sin(roll),
+        math.cos(pitch),
+        math.sin(pitch),
+        math.cos(yaw),
+        math.sin(yaw),
     )
     return np.array(
         [
@@ -197,15 +202,23 @@ def collision_surface_points(urdf_text: str, link_name: str, spacing: float) -> 
     Raises:
         ConfigError: the link is missing or has a collision shape other than a box or cylinder.
     """
-    link = next((e for e in ET.fromstring(urdf_text).iter("link") if e.get("name") == link_name), None)
+    link = next(
+        (e for e in ET.fromstring(urdf_text).iter("link") if e.get("name") == link_name), None
+    )
     if link is None:
         msg = f"link {link_name} is not in the URDF"
         raise ConfigError(msg)
     clouds = []
     for collision in link.iter("collision"):
         origin = collision.find("origin")
-        xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
-        rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
+        xyz = [
+            float(v)
+            for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()
+        ]
+        rpy = [
+            float(v)
+            for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()
+        ]
         box = collision.find("geometry/box")
         cylinder = collision.find("geometry/cylinder")
         if box is not None:
@@ -216,14 +229,18 @@ def collision_surface_points(urdf_text: str, link_name: str, spacing: float) -> 
             local = grid[on_face]
         elif cylinder is not None:
             radius, length = float(cylinder.get("radius", "0")), float(cylinder.get("length", "0"))
-            angles = np.linspace(0, 2 * math.pi, max(8, math.ceil(2 * math.pi * radius / spacing)), endpoint=False)
+            angles = np.linspace(
+                0, 2 * math.pi, max(8, math.ceil(2 * math.pi * radius / spacing)), endpoint=False
+            )
             heights = np.linspace(-length / 2, length / 2, max(2, math.ceil(length / spacing) + 1))
             a, h = np.meshgrid(angles, heights)
             side = np.stack((radius * np.cos(a), radius * np.sin(a), h), axis=-1).reshape(-1, 3)
             radii = np.linspace(0, radius, max(2, math.ceil(radius / spacing) + 1))
             rr, aa = np.meshgrid(radii, angles)
             disc = np.stack((rr * np.cos(aa), rr * np.sin(aa)), axis=-1).reshape(-1, 2)
-            caps = [np.column_stack((disc, np.full(len(disc), z))) for z in (-length / 2, length / 2)]
+            caps = [
+                np.column_stack((disc, np.full(len(disc), z))) for z in (-length / 2, length / 2)
+            ]
             local = np.vstack((side, *caps))
         else:
             msg = f"collision of {link_name} must be boxes or cylinders to be carved with"
@@ -317,7 +334,7 @@ def make_force_model(name: str, params: Mapping[str, Any]) -> TerrainForceModel 
     if name == "none":
         return None
     try:
-        from ow_dem_bridge.models import make_model  # type: ignore[import-not-found]
+        from ow_dem_bridge.models import make_model
     except ImportError as error:
         msg = f"terrain_forces {name!r} needs ow_dem_bridge.models.make_model: {error}"
         raise ConfigError(msg) from error
@@ -329,7 +346,7 @@ def make_force_model(name: str, params: Mapping[str, Any]) -> TerrainForceModel 
     if not callable(getattr(model, "wrench", None)):
         msg = f"terrain_forces {name!r}: the model has no wrench(state) method"
         raise ConfigError(msg)
-    return model  # type: ignore[no-any-return]
+    return model
 
 
 class BulletSim:
@@ -361,7 +378,9 @@ class BulletSim:
             ALL_JOINTS, key=lambda j: self._pin_model.joints[self._pin_model.getJointId(j)].idx_q
         )
         if self._pin_model.nq != len(ALL_JOINTS) or self._pin_model.nv != len(ALL_JOINTS):
-            msg = f"expected {len(ALL_JOINTS)} one-dof joints, pinocchio has nq {self._pin_model.nq}"
+            msg = (
+                f"expected {len(ALL_JOINTS)} one-dof joints, pinocchio has nq {self._pin_model.nq}"
+            )
             raise ConfigError(msg)
         #: joint names in the order of every joint array of this class.
         self.names: tuple[str, ...] = tuple(order)
@@ -410,7 +429,9 @@ class BulletSim:
                 jointDamping=0.0,
                 physicsClientId=self.client,
             )
-            is_tool = link >= 0 and link in [self.link_index[name] for name in TERRAIN_CONTACT_LINKS]
+            is_tool = link >= 0 and link in [
+                self.link_index[name] for name in TERRAIN_CONTACT_LINKS
+            ]
             pb.setCollisionFilterGroupMask(
                 self.robot,
                 link,
@@ -473,7 +494,9 @@ class BulletSim:
         self._setpoint = q0.copy()
         self._trajectories.clear()
         gravity = self._bias(q0, np.zeros_like(q0))
-        self._integral = np.where(self._ki > 0, np.clip(gravity, -self._i_clamp, self._i_clamp), 0.0)
+        self._integral = np.where(
+            self._ki > 0, np.clip(gravity, -self._i_clamp, self._i_clamp), 0.0
+        )
         zeros = np.zeros(len(self.names))
         self.sample = JointSample(
             self.time, self.names, q0, zeros, gravity, zeros, self._setpoint.copy()
@@ -643,15 +666,19 @@ class BulletSim:
 
     # ------------------------------------------------------------------ tools and terrain
     def _contacts(self, track: _ToolTrack) -> FloatArray:
-        """(n, 7) contacts of a tool from the last step: point on the tool (3,), force on it (3,), N,
-        normal force N."""
+        """Contacts of a tool from the last step, (n, 7).
+
+        Columns: point on the tool (3,) m, force on the tool (3,) N, normal force N.
+        """
         contacts = pb.getContactPoints(
             bodyA=self.robot, linkIndexA=track.link_index, physicsClientId=self.client
         )
         if not contacts:
             return np.zeros((0, 7))
         raw = np.array([(*c[5], *c[7], c[9], c[10], *c[11], c[12], *c[13]) for c in contacts])
-        force = raw[:, 3:6] * raw[:, 6:7] + raw[:, 8:11] * raw[:, 7:8] + raw[:, 12:15] * raw[:, 11:12]
+        force = (
+            raw[:, 3:6] * raw[:, 6:7] + raw[:, 8:11] * raw[:, 7:8] + raw[:, 12:15] * raw[:, 11:12]
+        )
         return np.hstack((raw[:, 0:3], force, raw[:, 6:7]))
 
     def _accumulate_contacts(self) -> None:
@@ -693,7 +720,9 @@ class BulletSim:
                 # is removed; Bullet's own contact penetration must not make the tool creep down.
                 target, slack = z, _EMBEDDED_DEPTH
             near = np.zeros(len(points), dtype=bool)
-            near[inside] = target[inside] + slack < self._heights[row[inside], col[inside]] + hm.resolution
+            near[inside] = (
+                target[inside] + slack < self._heights[row[inside], col[inside]] + hm.resolution
+            )
             if not near.any():
                 continue
             # Each point lowers the four corners of its grid cell (the vertices of the Bullet
@@ -724,7 +753,7 @@ class BulletSim:
     def _tool_kinematics(
         self, tool: str, q: FloatArray, v: FloatArray
     ) -> tuple[pin.SE3, FloatArray, FloatArray, FloatArray, FloatArray]:
-        """Link pose, tip position, tip velocity (base_link), link linear/angular velocity (base)."""
+        """Link pose, tip position and velocity, link linear and angular velocity (base_link)."""
         link, tip = TOOLS[tool]
         link_id, tip_id = self._frame_id[link], self._frame_id[tip]
         world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -748,7 +777,11 @@ class BulletSim:
             ahead = np.linspace(0.0, _DEPTH_LOOKAHEAD, 6)
             direction = tip_velocity[:2] / horizontal
             surface = float(
-                np.max(self._heightmap.height_at(tip[0] + ahead * direction[0], tip[1] + ahead * direction[1]))
+                np.max(
+                    self._heightmap.height_at(
+                        tip[0] + ahead * direction[0], tip[1] + ahead * direction[1]
+                    )
+                )
             )
         return terrain_z, max(0.0, surface - float(tip[2]))
 
@@ -780,7 +813,7 @@ class BulletSim:
     def _apply_terrain_forces(self, q: FloatArray, v: FloatArray) -> None:
         assert self.force_model is not None
         self._frames(q, v)
-        for tool, (link, _) in TOOLS.items():
+        for tool in TOOLS:
             track = self._tools[tool]
             state = self._update_tool(tool, q, v)
             track.model_wrench = None

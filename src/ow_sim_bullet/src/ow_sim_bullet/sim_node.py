@@ -5,7 +5,6 @@ from __future__ import annotations
 import threading
 import time
 import warnings
-import warnings
 from collections import deque
 from collections.abc import Callable
 from functools import partial
@@ -14,6 +13,12 @@ from typing import Any, TypeVar
 import rospy
 import tf2_ros
 from geometry_msgs.msg import PointStamped, WrenchStamped
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+from std_srvs.srv import Trigger, TriggerRequest, TriggerResponse
+from tf2_msgs.msg import TFMessage
+
 from ow_lander.description import URDF_PATH
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.msg import ToolState as ToolStateMsg
@@ -28,12 +33,6 @@ from ow_msgs.srv import (
     StepSimulationRequest,
     StepSimulationResponse,
 )
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64
-from std_srvs.srv import Trigger, TriggerRequest, TriggerResponse
-from tf2_msgs.msg import TFMessage
-
 from ow_sim_bullet import conversions
 from ow_sim_bullet.config import CONTROLLER_NAMES, PidGains, SimConfig
 from ow_sim_bullet.errors import CommandError, SimError
@@ -135,7 +134,9 @@ class SimNode:
                 tool: rospy.Publisher(f"~{tool}_wrench", WrenchStamped, queue_size=None)
                 for tool in TOOLS
             }
-            self._tip_ground_pub = rospy.Publisher("~scoop_tip_ground", PointStamped, queue_size=None)
+            self._tip_ground_pub = rospy.Publisher(
+                "~scoop_tip_ground", PointStamped, queue_size=None
+            )
             self._tool_pubs = {
                 tool: rospy.Publisher(f"~{tool}_state", ToolStateMsg, queue_size=None)
                 for tool in TOOLS
@@ -219,7 +220,7 @@ class SimNode:
                 raise SimError(msg)
         if "error" in result:
             raise result["error"]
-        return result["value"]  # type: ignore[no-any-return]
+        return result["value"]
 
     def _on_setpoint(self, joint: str, msg: Float64) -> None:
         def apply() -> None:
@@ -261,7 +262,9 @@ class SimNode:
             self._call(self.sim.reset)
         except SimError as error:
             return TriggerResponse(success=False, message=str(error))
-        return TriggerResponse(success=True, message=f"joints reset at sim time {self.sim.time:.3f} s")
+        return TriggerResponse(
+            success=True, message=f"joints reset at sim time {self.sim.time:.3f} s"
+        )
 
     def _on_pause(self, _: TriggerRequest) -> TriggerResponse:
         with self._wake:
@@ -305,7 +308,8 @@ class SimNode:
         except SimError as error:
             return SetPidGainsResponse(success=False, message=str(error))
         return SetPidGainsResponse(
-            success=True, message=f"{request.joint}: p {gains.p} i {gains.i} d {gains.d} i_clamp {gains.i_clamp}"
+            success=True,
+            message=f"{request.joint}: p {gains.p} i {gains.i} d {gains.d} i_clamp {gains.i_clamp}",
         )
 
     def _on_set_terrain(self, request: SetTerrainRequest) -> SetTerrainResponse:

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
+
 from ow_lander.errors import TerrainError
 from ow_lander.terrain import HeightMap
-
 from ow_sim_bullet.errors import TerrainSpecError
 
 FloatArray = npt.NDArray[np.float64]
@@ -47,7 +47,9 @@ def flat(z: float) -> HeightMap:
     return HeightMap(np.full(gx.shape, float(z)), GRID_RESOLUTION, GRID_X[0], GRID_Y[0])
 
 
-def _smooth_noise(rng: np.random.Generator, shape: tuple[int, int], sigma_cells: float) -> FloatArray:
+def _smooth_noise(
+    rng: np.random.Generator, shape: tuple[int, int], sigma_cells: float
+) -> FloatArray:
     """Gaussian-filtered white noise with unit standard deviation (periodic FFT filter)."""
     noise = rng.standard_normal(shape)
     ky = np.fft.fftfreq(shape[0])[:, None]
@@ -63,7 +65,7 @@ def _smoothstep(edge0: float, edge1: float, x: FloatArray) -> FloatArray:
 
 
 def europa(seed: int) -> HeightMap:
-    """Procedural icy terrain: a smooth workspace at about -0.155 m, rough ice with penitentes beyond.
+    """Procedural ice: a smooth workspace at about -0.155 m, rough ice with penitentes beyond.
 
     The workspace in front of the arm (an ellipse around x 1.75, y 0.05 with half-axes 0.75 and
     0.95 m) and the ground under the lander undulate by a few millimetres around the reference
@@ -84,7 +86,11 @@ def europa(seed: int) -> HeightMap:
     )
     under_lander = (np.abs(gx) < LANDER_HALF_EXTENT) & (np.abs(gy) < LANDER_HALF_EXTENT)
     rough_weight = _smoothstep(1.0, 1.5, ellipse) * ~under_lander
-    heights = DEFAULT_GROUND_Z + 0.004 * undulation + rough_weight * (0.04 * undulation + 0.012 * roughness)
+    heights = (
+        DEFAULT_GROUND_Z
+        + 0.004 * undulation
+        + rough_weight * (0.04 * undulation + 0.012 * roughness)
+    )
 
     # Penitentes only where the ice is fully rough.
     res = GRID_RESOLUTION
@@ -97,7 +103,9 @@ def europa(seed: int) -> HeightMap:
         dr, dc = math.ceil(half_y / res), math.ceil(half_x / res)
         r0, r1 = max(r - dr, 0), min(r + dr + 1, shape[0])
         c0, c1 = max(c - dc, 0), min(c + dc + 1, shape[1])
-        local = np.hypot((gx[r0:r1, c0:c1] - gx[r, c]) / half_x, (gy[r0:r1, c0:c1] - gy[r, c]) / half_y)
+        local = np.hypot(
+            (gx[r0:r1, c0:c1] - gx[r, c]) / half_x, (gy[r0:r1, c0:c1] - gy[r, c]) / half_y
+        )
         spike = height * np.clip(1.0 - local, 0.0, None) ** 1.5
         heights[r0:r1, c0:c1] = np.maximum(heights[r0:r1, c0:c1], heights[r, c] + spike)
     return HeightMap(heights, GRID_RESOLUTION, GRID_X[0], GRID_Y[0])
@@ -218,5 +226,8 @@ def parse_terrain_spec(
         return europa(int(arg))
     if kind == "file":
         return load_file(Path(arg).expanduser(), file_resolution, file_centre, png_height_range)
-    msg = f"terrain spec {spec!r} has unknown form {kind!r}; use flat:<z>, europa:<seed> or file:<path>"
+    msg = (
+        f"terrain spec {spec!r} has unknown form {kind!r}; "
+        "use flat:<z>, europa:<seed> or file:<path>"
+    )
     raise TerrainSpecError(msg)

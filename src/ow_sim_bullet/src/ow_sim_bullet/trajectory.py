@@ -1,4 +1,4 @@
-"""Joint trajectories the simulation interpolates itself (the paper's "joint trajectory controller").
+"""Joint trajectories the simulation interpolates itself (the paper's future trajectory controller).
 
 A trajectory names some joints and gives way points at times from its start. Between way points
 the set-point is a cubic Hermite spline when every point has velocities, else linear. Before the
@@ -80,7 +80,9 @@ class JointTrajectory:
         q = _matrix(positions, len(t), len(joints), "positions")
         v = None if velocities is None else _matrix(velocities, len(t), len(joints), "velocities")
         if not np.all(np.isfinite(t)) or t[0] < 0 or np.any(np.diff(t) <= 0):
-            msg = f"trajectory times from start must be finite, >= 0 and increasing, got {t.tolist()}"
+            msg = (
+                f"trajectory times from start must be finite, >= 0 and increasing, got {t.tolist()}"
+            )
             raise CommandError(msg)
         return cls(joints, float(start_time), t, q, v)
 
@@ -146,8 +148,18 @@ class ActiveTrajectory:
         if self._vel is None:
             return p0 + s * (p1 - p0), (p1 - p0) / h
         v0, v1 = self._vel[i] * h, self._vel[i + 1] * h
-        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
-        d00, d10, d01, d11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, -6 * s**2 + 6 * s, 3 * s**2 - 2 * s
+        h00, h10, h01, h11 = (
+            2 * s**3 - 3 * s**2 + 1,
+            s**3 - 2 * s**2 + s,
+            -2 * s**3 + 3 * s**2,
+            s**3 - s**2,
+        )
+        d00, d10, d01, d11 = (
+            6 * s**2 - 6 * s,
+            3 * s**2 - 4 * s + 1,
+            -6 * s**2 + 6 * s,
+            3 * s**2 - 2 * s,
+        )
         position = h00 * p0 + h10 * v0 + h01 * p1 + h11 * v1
         velocity = (d00 * p0 + d10 * v0 + d01 * p1 + d11 * v1) / h
         return position, velocity
