@@ -13,7 +13,8 @@ apt_packages=(
   python3-rospy python3-rosservice python3-rostest python3-rosbag
   python3-tf2-ros python3-tf2-geometry-msgs
   python3-std-msgs python3-std-srvs python3-geometry-msgs python3-sensor-msgs
-  python3-visualization-msgs ros-trajectory-msgs ros-sensor-msgs libsensor-msgs-dev
+  python3-visualization-msgs python3-trajectory-msgs python3-rosgraph-msgs python3-tf2-msgs
+  ros-trajectory-msgs ros-sensor-msgs libsensor-msgs-dev python3-roslaunch
   python3-genpy python3-genmsg python3-venv python3-pip g++ make cmake
 )
 [ "${OW_SKIP_YADE:-0}" = 1 ] || apt_packages+=(yade)
