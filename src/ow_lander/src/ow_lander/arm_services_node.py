@@ -6,11 +6,13 @@ ROS API
         ``/arm/dig_linear`` (DigLinear), ``/arm/deliver_sample`` (DeliverSample),
         ``/arm/publish_trajectory`` (PublishTrajectory).
     Subscribes: ``/joint_states`` (sensor_msgs/JointState, by joint name): the start of every
-        plan; ``/sim/terrain`` (ow_msgs/HeightMap, latched): the terrain checked against.
+        plan and the execution monitor; ``/sim/terrain`` (ow_msgs/HeightMap, latched): the
+        terrain checked against; ``/tf``, ``/tf_static``: the scoop tip for ground detection.
     Publishes: ``/arm/operation`` (ow_msgs/Operation, START and END of every call, effective
-        parameters as JSON); ``/<joint>_position_controller/command`` (std_msgs/Float64, rad)
-        for the six arm joints while executing; ``/guarded_move_result``
-        (ow_msgs/GuardedMoveResult) after a guarded descent.
+        parameters as JSON); ``/sim/joint_trajectory`` (trajectory_msgs/JointTrajectory, the
+        default execution interface) or ``/<joint>_position_controller/command``
+        (std_msgs/Float64, rad; ``execution/interface: position_controllers``) for the six arm
+        joints; ``/guarded_move_result`` (ow_msgs/GuardedMoveResult) once per guarded descent.
     Parameters (private, read once, see config/arm_services.yaml): ``trajectory_dir``,
         ``plan_and_execute``, ``fallback_ground_z`` (m), ``planner/*``, ``timing/*``,
         ``execution/*``.
@@ -32,9 +34,12 @@ from typing import Any
 
 import numpy as np
 import rospy
+import tf2_ros
 from geometry_msgs.msg import Point
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
+from tf2_msgs.msg import TFMessage
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ow_lander.config import ArmServicesConfig
 from ow_lander.conversions import height_map_from_msg, joint_positions, jsonable, request_to_dict
@@ -87,6 +92,23 @@ class ExecutionResult:
         self.ground_position = np.zeros(3)
 
 
+class GuardWatch:
+    """The ground detector armed for one guarded descent, fed from tf on simulation time.
+
+    Attributes:
+        start: s (sim), first time of the descent (after the settle pause).
+        end: s (sim), last time of the descent.
+        detector: the paper's detector.
+        contact_time: s (sim) of the sample at which contact was declared, or None.
+    """
+
+    def __init__(self, start: float, end: float) -> None:
+        self.start = start
+        self.end = end
+        self.detector = GroundDetector()
+        self.contact_time: float | None = None
+
+
 class ArmServicesNode:
     """The arm services: plan from the current joint state, write trajectories, execute them."""
 
@@ -101,7 +123,11 @@ class ArmServicesNode:
         self.store = TrajectoryStore(Path(directory))
         self._busy = threading.Lock()
         self._state_lock = threading.Lock()
+        self._state_changed = threading.Condition(self._state_lock)
         self._joints: dict[str, float] = {}
+        self._joint_stamp = 0.0
+        self._tf = tf2_ros.BufferCore(rospy.Duration(30.0))
+        self._guard: GuardWatch | None = None
         self._terrain: HeightMap | None = None
         self._fallback = HeightMap.flat(config.fallback_ground_z)
         self._operation_id = 0
@@ -112,7 +138,12 @@ class ArmServicesNode:
         self.command_pubs = {
             j: rospy.Publisher(command_topic(j), Float64, queue_size=10) for j in ARM_JOINTS
         }
-        rospy.Subscriber("/joint_states", JointState, self._on_joint_states, queue_size=10)
+        self.trajectory_pub = rospy.Publisher(
+            "/sim/joint_trajectory", JointTrajectory, queue_size=10
+        )
+        rospy.Subscriber("/joint_states", JointState, self._on_joint_states, queue_size=100)
+        rospy.Subscriber("/tf", TFMessage, self._on_tf, queue_size=100)
+        rospy.Subscriber("/tf_static", TFMessage, self._on_tf, callback_args=True, queue_size=10)
         rospy.Subscriber("/sim/terrain", HeightMapMsg, self._on_terrain, queue_size=1)
         services: list[tuple[str, Any, Callable[[Any], Any]]] = [
             ("unstow", Unstow, self._plan_service("unstow", UnstowResponse)),
@@ -134,8 +165,37 @@ class ArmServicesNode:
     # ------------------------------------------------------------------------- callbacks
     def _on_joint_states(self, msg: JointState) -> None:
         values = joint_positions(list(msg.name), msg.position)
-        with self._state_lock:
+        with self._state_changed:
             self._joints.update(values)
+            self._joint_stamp = msg.header.stamp.to_sec()
+            self._state_changed.notify_all()
+
+    def _on_tf(self, msg: TFMessage, static: bool = False) -> None:
+        """Feed tf2; during a guarded descent, sample the scoop tip at each tf stamp."""
+        stamps = set()
+        for transform in msg.transforms:
+            if static:
+                self._tf.set_transform_static(transform, "sim")
+            else:
+                self._tf.set_transform(transform, "sim")
+                stamps.add(transform.header.stamp)
+        guard = self._guard
+        if guard is None or guard.contact_time is not None:
+            return
+        for stamp in sorted(stamps):
+            t = stamp.to_sec()
+            if not guard.start <= t <= guard.end:
+                continue
+            try:
+                tip = self._tf.lookup_transform_core(BASE_FRAME, SCOOP_TIP_FRAME, stamp)
+            except tf2_ros.TransformException:
+                continue  # not every link's transform of this stamp has arrived yet
+            p = tip.transform.translation
+            if guard.detector.update(t, np.array([p.x, p.y, p.z])):
+                guard.contact_time = t
+                with self._state_changed:
+                    self._state_changed.notify_all()
+                return
 
     def _on_terrain(self, msg: HeightMapMsg) -> None:
         try:
@@ -194,19 +254,6 @@ class ArmServicesNode:
             return self._run_operation(name, request, response_cls)
 
         return handler
-
-    def _plan(self, name: str, q: np.ndarray, terrain: HeightMap, req: dict[str, Any]) -> Any:
-        ops = self.operations
-        planners: dict[str, Callable[[], OperationPlan]] = {
-            "unstow": lambda: ops.plan_unstow(q, terrain),
-            "stow": lambda: ops.plan_stow(q, terrain),
-            "guarded_move": lambda: ops.plan_guarded_move(q, terrain, req),
-            "grind": lambda: ops.plan_grind(q, terrain, req),
-            "dig_circular": lambda: ops.plan_dig_circular(q, terrain, req),
-            "dig_linear": lambda: ops.plan_dig_linear(q, terrain, req),
-            "deliver_sample": lambda: ops.plan_deliver_sample(q, terrain, req),
-        }
-        return planners[name]()
 
     def _timed(self, plan: OperationPlan) -> Trajectory:
         timing = self.config.timing
@@ -273,7 +320,8 @@ class ArmServicesNode:
         if terrain_note:
             notes.append(terrain_note)
         started = time.perf_counter()
-        plan = self._plan(name, q, terrain, req)
+        plan = self.operations.plan(name, q, terrain, req)
+        notes.extend(plan.notes)
         trajectory = self._timed(plan)
         response.planning_time = time.perf_counter() - started
         parameters.update(plan.parameters)
@@ -335,7 +383,12 @@ class ArmServicesNode:
             self._busy.release()
 
     def _execute(self, trajectory: Trajectory) -> ExecutionResult:
-        """Stream ``trajectory`` to the position controllers on simulation time."""
+        """Execute ``trajectory`` on the simulation and watch it on simulation time.
+
+        The arm must start within ``max_tracking_error_rad`` of the first row. A guarded
+        segment is preceded by a ``guarded_settle_s`` hold, and the ground detector runs on the
+        scoop tip from tf during the descent; on contact the arm holds where it is.
+        """
         cfg = self.config.execution
         unknown = [j for j in trajectory.joints if j not in self.command_pubs]
         if unknown:
@@ -343,91 +396,148 @@ class ArmServicesNode:
                 False, f"trajectory names joints without a controller: {unknown}"
             )
         q0 = self._current_q()
-        first = trajectory.positions[0]
         idx = [self.model.index(j) for j in trajectory.joints]
-        start_error = float(np.max(np.abs(q0[idx] - first)))
+        start_error = float(np.max(np.abs(q0[idx] - trajectory.positions[0])))
         if start_error > cfg.max_tracking_error_rad:
             return ExecutionResult(
                 False,
                 f"the arm is {start_error:.3f} rad from the trajectory's first row "
                 f"(limit {cfg.max_tracking_error_rad} rad); plan again from the current state",
             )
-        detector = GroundDetector()
         guarded = trajectory.segment_span("guarded")
-        rate = rospy.Rate(cfg.command_rate_hz)
-        t_start = rospy.Time.now()
-        settle_pause = 0.0
-        pause_start: float | None = None
+        if guarded is not None and cfg.guarded_settle_s > 0:
+            trajectory = trajectory.with_pause(guarded[0], cfg.guarded_settle_s)
+            guarded = (guarded[0] + cfg.guarded_settle_s, guarded[1] + cfg.guarded_settle_s)
+        with self._state_lock:
+            t_start = self._joint_stamp + cfg.start_delay_s
+        if cfg.interface == "trajectory":
+            self.trajectory_pub.publish(self._trajectory_msg(trajectory, t_start))
+        if guarded is not None:
+            self._guard = GuardWatch(t_start + guarded[0], t_start + guarded[1])
+        try:
+            result = self._monitor(trajectory, idx, t_start)
+        finally:
+            guard, self._guard = self._guard, None
+        if guarded is not None and result.success:
+            result = self._guarded_result(trajectory, guarded, guard, result)
+        return result
+
+    def _monitor(self, trajectory: Trajectory, idx: list[int], t_start: float) -> ExecutionResult:
+        """Follow the execution on each /joint_states message until it ends one way or another."""
+        cfg = self.config.execution
         limit = trajectory.duration * cfg.timeout_factor + cfg.settle_timeout_s
-        stalled_since = time.monotonic()
-        last_sim = t_start
-        result = ExecutionResult(False, "")
+        next_command = t_start
+        last_stamp = -1.0
         while not rospy.is_shutdown():
-            now = rospy.Time.now()
-            if now != last_sim:
-                last_sim, stalled_since = now, time.monotonic()
-            elif time.monotonic() - stalled_since > 5.0:
-                return ExecutionResult(False, "simulation time is not advancing (no /clock?)")
-            elapsed = (now - t_start).to_sec()
-            t = elapsed - settle_pause
-            settling = False
-            if guarded and settle_pause == 0.0 and t >= guarded[0] and cfg.guarded_settle_s > 0:
-                # Hold the start of the descent so the arm settles (OceanWATERS: 2 s).
-                if pause_start is None:
-                    pause_start = elapsed
-                    detector.reset()
-                if elapsed - pause_start < cfg.guarded_settle_s:
-                    t, settling = guarded[0], True
-                else:
-                    settle_pause = cfg.guarded_settle_s
-                    t = elapsed - settle_pause
-            setpoint = trajectory.sample(min(max(t, 0.0), trajectory.duration))
-            for joint, value in zip(trajectory.joints, setpoint, strict=True):
-                self.command_pubs[joint].publish(Float64(float(value)))
-            q = self._current_q()
-            error = np.abs(q[idx] - setpoint)
+
+            def news(last: float = last_stamp) -> bool:
+                guard = self._guard
+                contact = guard is not None and guard.contact_time is not None
+                return self._joint_stamp != last or contact
+
+            with self._state_changed:
+                arrived = self._state_changed.wait_for(news, timeout=cfg.joint_state_timeout_s)
+                stamp = self._joint_stamp
+                values = {j: v for j, v in self._joints.items() if j in ALL_JOINTS}
+            if not arrived:
+                self._hold(None)
+                return ExecutionResult(
+                    False,
+                    f"no /joint_states for {cfg.joint_state_timeout_s} s of wall time: "
+                    "is the simulation running?",
+                )
+            last_stamp = stamp
+            q = self.model.q_from(values)
+            t = stamp - t_start
+            guard = self._guard
+            if guard is not None and guard.contact_time is not None:
+                self._hold(q[idx])
+                return ExecutionResult(True, "ground found", t)
+            if cfg.interface == "position_controllers" and stamp >= next_command:
+                setpoint = trajectory.sample(max(t + 1.0 / cfg.command_rate_hz, 0.0))
+                for joint, value in zip(trajectory.joints, setpoint, strict=True):
+                    self.command_pubs[joint].publish(Float64(float(value)))
+                next_command = stamp + 1.0 / cfg.command_rate_hz
+            if t < 0.0:
+                continue
+            error = np.abs(q[idx] - trajectory.sample(t))
             worst = int(np.argmax(error))
             if error[worst] > cfg.max_tracking_error_rad:
+                self._hold(q[idx])
                 return ExecutionResult(
                     False,
                     f"tracking error: {trajectory.joints[worst]} is {error[worst]:.3f} rad from "
-                    f"its set-point at t={t:.1f} s (limit {cfg.max_tracking_error_rad} rad)",
-                    elapsed,
+                    f"its set-point at t={t:.1f} s (limit {cfg.max_tracking_error_rad} rad); "
+                    "the arm holds where it is",
+                    t,
                 )
-            if guarded and not settling and guarded[0] <= t <= guarded[1]:
-                tip = self.model.position(q, SCOOP_TIP_FRAME)
-                if detector.update(now.to_sec(), tip) and detector.contact is not None:
-                    result.ground_found = True
-                    result.ground_position = detector.contact
-                    self._publish_ground(True, detector.contact)
-                    hold = q[idx]
-                    for joint, value in zip(trajectory.joints, hold, strict=True):
-                        self.command_pubs[joint].publish(Float64(float(value)))
-                    result.success = True
-                    result.message = "ground found"
-                    result.duration = elapsed
-                    return result
             if t >= trajectory.duration and error[worst] <= cfg.goal_tolerance_rad:
-                if guarded:
-                    self._publish_ground(False, np.zeros(3))
-                    result.message = "guarded move ended without finding the ground"
-                else:
-                    result.message = "reached the final set-point"
-                result.success = True
-                result.duration = elapsed
-                return result
-            if elapsed > limit + settle_pause:
+                return ExecutionResult(True, "reached the final set-point", t)
+            if t > limit:
+                self._hold(q[idx])
                 return ExecutionResult(
                     False,
                     f"timeout: final set-point not reached within {limit:.1f} s "
                     f"(worst joint {trajectory.joints[worst]} {error[worst]:.3f} rad away)",
-                    elapsed,
+                    t,
                 )
-            try:
-                rate.sleep()
-            except rospy.ROSTimeMovedBackwardsException:
-                t_start = rospy.Time.now()
         return ExecutionResult(False, "shutting down")
+
+    def _guarded_result(
+        self,
+        trajectory: Trajectory,
+        guarded: tuple[float, float],
+        guard: GuardWatch | None,
+        result: ExecutionResult,
+    ) -> ExecutionResult:
+        """Turn a finished guarded execution into found / not found, and publish it once."""
+        if (
+            guard is not None
+            and guard.contact_time is not None
+            and guard.detector.contact is not None
+        ):
+            result.ground_found = True
+            result.ground_position = guard.detector.contact
+            result.message = (
+                f"ground found at z={result.ground_position[2]:.4f} m "
+                f"(t={guard.contact_time:.2f} s sim)"
+            )
+            self._publish_ground(True, result.ground_position)
+            return result
+        base = self._current_q()
+        ends = [
+            self.model.position(
+                self.model.q_from(dict(zip(trajectory.joints, row, strict=True)), base),
+                SCOOP_TIP_FRAME,
+            )
+            for row in (trajectory.sample(guarded[0]), trajectory.sample(guarded[1]))
+        ]
+        searched = float(np.linalg.norm(ends[1] - ends[0]))
+        self._publish_ground(False, np.zeros(3))
+        return ExecutionResult(
+            False, f"no ground within {searched:.2f} m of the start of the descent", result.duration
+        )
+
+    def _trajectory_msg(self, trajectory: Trajectory, t_start: float) -> JointTrajectory:
+        msg = JointTrajectory()
+        msg.header.stamp = rospy.Time.from_sec(t_start)
+        msg.joint_names = list(trajectory.joints)
+        for t, position, velocity in zip(
+            trajectory.times, trajectory.positions, trajectory.velocities, strict=True
+        ):
+            point = JointTrajectoryPoint()
+            point.positions = position.tolist()
+            point.velocities = velocity.tolist()
+            point.time_from_start = rospy.Duration.from_sec(float(t))
+            msg.points.append(point)
+        return msg
+
+    def _hold(self, positions: np.ndarray | None) -> None:
+        """Stop the arm: hold ``positions`` (rad, arm joints), or where it is when None."""
+        if positions is None:
+            positions = self.planner.arm(self._current_q())
+        for joint, value in zip(ARM_JOINTS, positions, strict=True):
+            self.command_pubs[joint].publish(Float64(float(value)))
 
     def _publish_ground(self, found: bool, position: np.ndarray) -> None:
         msg = GuardedMoveResult()

@@ -89,10 +89,18 @@ class TimingConfig:
 
 @dataclass(frozen=True)
 class ExecutionConfig:
-    """How ``/arm/publish_trajectory`` streams set-points.
+    """How trajectories are executed.
 
     Attributes:
-        command_rate_hz: Hz (simulation time), set-point publishing rate.
+        interface: "trajectory": the whole trajectory goes to the simulation's joint
+            trajectory controller (``/sim/joint_trajectory``) at once and is followed on
+            simulation time (deterministic at any speed); "position_controllers": set-points are
+            streamed to ``/<joint>_position_controller/command`` at ``command_rate_hz`` as in
+            the paper (faithful at real_time_factor 1; lags when the simulation runs faster than
+            this node can stream).
+        start_delay_s: s (simulation time) between sending a trajectory and its first row.
+        command_rate_hz: Hz (simulation time), set-point rate of the "position_controllers"
+            interface.
         goal_tolerance_rad: rad, every joint within this of the final set-point = arrived.
         max_tracking_error_rad: rad, abort when a joint lags its set-point by more.
         settle_timeout_s: s (simulation time) allowed after the last row to reach the goal.
@@ -102,6 +110,8 @@ class ExecutionConfig:
         joint_state_timeout_s: s (wall), how long to wait for /joint_states before refusing.
     """
 
+    interface: str = "trajectory"
+    start_delay_s: float = 0.05
     command_rate_hz: float = 50.0
     goal_tolerance_rad: float = 0.02
     max_tracking_error_rad: float = 0.3
@@ -149,6 +159,9 @@ class ArmServicesConfig:
         _check_ranges(top)
         return top
 
+
+#: Values of ``execution/interface``.
+EXECUTION_INTERFACES = ("trajectory", "position_controllers")
 
 _NESTED = {"planner", "timing", "execution", "acceleration_limits"}
 
@@ -217,6 +230,12 @@ def _positive(value: float, key: str) -> float:
 
 
 def _check_ranges(config: ArmServicesConfig) -> None:
+    if config.execution.interface not in EXECUTION_INTERFACES:
+        msg = (
+            f"parameter 'execution/interface' must be one of {', '.join(EXECUTION_INTERFACES)}, "
+            f"got {config.execution.interface!r}"
+        )
+        raise ConfigError(msg)
     positive = {
         "planner/joint_resolution_rad": config.planner.joint_resolution_rad,
         "planner/cartesian_step_m": config.planner.cartesian_step_m,
@@ -244,6 +263,7 @@ def _check_ranges(config: ArmServicesConfig) -> None:
         "planner/path_length_weight": config.planner.path_length_weight,
         "planner/ik_restarts": config.planner.ik_restarts,
         "execution/guarded_settle_s": config.execution.guarded_settle_s,
+        "execution/start_delay_s": config.execution.start_delay_s,
     }
     for key, value in non_negative.items():
         if value < 0:

@@ -56,6 +56,8 @@ CIRCULAR_SWEEP = 2 * math.pi / 3
 DOCK_CENTRE = (0.555, -0.35, 0.65)
 #: m, height of the scoop tip above the dock centre when pouring.
 DOCK_POUR_HEIGHT = 0.25
+#: m, clearance above the terrain a tool is lifted to when an operation starts in contact.
+LIFT_OFF_CLEARANCE = 0.05
 #: rad, how far the scoop is tipped (about its own y axis) to pour.
 POUR_TILT = math.radians(110)
 #: rad, (shoulder pitch, prox, dist, hand, scoop) of the reference configurations, aimed by the
@@ -255,12 +257,14 @@ class Operations:
         target: FloatArray,
         rotation_at: Any,
         ctx: CheckContext,
+        partial: bool = False,
     ) -> FloatArray:
-        """Straight line of ``frame`` from where it is to ``target``; orientation per point."""
+        """Straight line of ``frame`` from where it is to ``target``; orientation per point.
+        With ``partial``, as far along it as the arm can go (see ArmPlanner.plan_cartesian)."""
         here = self._position(start, ctx.base, frame)
         points = line(here, target, self.planner.config.cartesian_step_m)
         return self.planner.plan_cartesian(
-            start, frame, points, [rotation_at(p) for p in points], ctx
+            start, frame, points, [rotation_at(p) for p in points], ctx, partial=partial
         )
 
     def _approach(
@@ -287,6 +291,69 @@ class Operations:
         return arm
 
     # ------------------------------------------------------------------------- operations
+    def plan(
+        self,
+        name: str,
+        q: FloatArray,
+        terrain: HeightMap | None,
+        request: Mapping[str, Any] | None = None,
+    ) -> OperationPlan:
+        """Plan operation ``name`` (a service name) from configuration ``q``.
+
+        When the scoop or grinder starts in the terrain (after a guarded move, a dig or a
+        grind), the plan begins with a straight lift of that tool's tip until it is
+        ``LIFT_OFF_CLEARANCE`` above the terrain.
+
+        Raises:
+            PlanningError: unknown operation, invalid request, or no valid plan.
+        """
+        planners = {
+            "unstow": lambda q_: self.plan_unstow(q_, terrain),
+            "stow": lambda q_: self.plan_stow(q_, terrain),
+            "guarded_move": lambda q_: self.plan_guarded_move(q_, terrain, request or {}),
+            "grind": lambda q_: self.plan_grind(q_, terrain, request or {}),
+            "dig_circular": lambda q_: self.plan_dig_circular(q_, terrain, request or {}),
+            "dig_linear": lambda q_: self.plan_dig_linear(q_, terrain, request or {}),
+            "deliver_sample": lambda q_: self.plan_deliver_sample(q_, terrain, request or {}),
+        }
+        if name not in planners:
+            msg = f"unknown operation {name!r}; known: {', '.join(planners)}"
+            raise PlanningError(msg)
+        lift = self._lift_off(q, terrain)
+        if lift is None:
+            return planners[name](q)
+        plan = planners[name](self.planner.full(lift[-1], q))
+        plan.segments.insert(0, PathSegment("lift_off", lift))
+        plan.notes.append("started with a tool in the terrain: lifted it out first")
+        return plan
+
+    def _lift_off(self, q: FloatArray, terrain: HeightMap | None) -> FloatArray | None:
+        """(n, 6) rad path lifting a tool out of the terrain, or None when ``q`` is valid."""
+        arm = self.planner.arm(q)
+        if terrain is None or self.planner.is_valid(arm, self._ctx(q, terrain)):
+            return None
+        tools = (SCOOP_LINK, GRINDER_LINK)
+        ctx = CheckContext(
+            np.asarray(q, dtype=np.float64),
+            terrain,
+            tuple(link for link in ARM_LINKS if link not in tools),
+            self.planner.config.terrain_margin_m,
+        )
+        if not self.planner.is_valid(arm, ctx):
+            msg = f"the arm's current configuration is invalid: {self.planner.explain(arm, ctx)}"
+            raise PlanningError(msg)
+        report = self.model.collision_report(q, terrain, tools)
+        frame = SCOOP_TIP_FRAME if report.terrain_link == SCOOP_LINK else GRINDER_TIP_FRAME
+        here = self._position(arm, q, frame)
+        rotation = self._rotation(arm, q, frame)
+        target = here + np.array([0.0, 0.0, report.terrain_penetration + LIFT_OFF_CLEARANCE])
+        path = self._cartesian(arm, frame, target, lambda _: rotation, ctx)
+        if not self.planner.is_valid(path[-1], self._ctx(q, terrain)):
+            end = self.planner.explain(path[-1], self._ctx(q, terrain))
+            msg = f"lifting {report.terrain_link} out of the terrain did not free the arm: {end}"
+            raise PlanningError(msg)
+        return path
+
     def plan_unstow(self, q: FloatArray, terrain: HeightMap | None) -> OperationPlan:
         """Free-space motion to the unstowed ("safe") configuration."""
         return self._to_named("unstow", UNSTOWED, q, terrain)
@@ -328,7 +395,8 @@ class Operations:
         approach = self._approach(start, goal, reference, ctx)
         dig = self._ctx(q, terrain, SCOOP_LINK)
         end = target - normal * float(p["search_distance"])
-        descent = self._cartesian(goal, SCOOP_TIP_FRAME, end, lambda _: R0, dig)
+        # The search goes as deep as the arm can without the rest of it touching the terrain.
+        descent = self._cartesian(goal, SCOOP_TIP_FRAME, end, lambda _: R0, dig, partial=True)
         segments = [PathSegment("approach", approach), PathSegment("guarded", descent)]
         return OperationPlan("guarded_move", segments, p)
 

@@ -422,6 +422,7 @@ class ArmPlanner:
         positions: Sequence[FloatArray],
         rotations: Sequence[FloatArray | None],
         ctx: CheckContext,
+        partial: bool = False,
     ) -> FloatArray:
         """Follow Cartesian waypoints with ``frame``, IK seeded by the previous solution.
 
@@ -433,9 +434,11 @@ class ArmPlanner:
             rotations: (3, 3) orientation of ``frame`` at each waypoint, or None for position
                 only.
             ctx: what states are checked against (every joint step of the joint resolution).
+            partial: stop at the last reachable, valid waypoint instead of raising (a search
+                motion such as the guarded descent goes as far as the arm can).
 
         Returns:
-            (n + 1, 6) rad: ``start`` then one configuration per waypoint.
+            (n + 1, 6) rad: ``start`` then one configuration per waypoint (fewer if partial).
 
         Raises:
             PlanningError: IK fails, a joint jumps more than ``max_joint_jump_rad`` between
@@ -457,12 +460,16 @@ class ArmPlanner:
                     max_iterations=100,
                 )
             except IKError as error:
+                if partial and len(out) > 1:
+                    break
                 msg = f"Cartesian path of {frame} breaks at waypoint {k} {where}: {error}"
                 raise PlanningError(msg) from error
             arm = self.unwrap(self.arm(q), previous)
             jump = np.abs(arm - previous)
             j = int(np.argmax(jump))
             if jump[j] > self.config.max_joint_jump_rad:
+                if partial and len(out) > 1:
+                    break
                 msg = (
                     f"Cartesian path of {frame} breaks at waypoint {k} {where}: {ARM_JOINTS[j]} "
                     f"would jump {jump[j]:.3f} rad (limit {self.config.max_joint_jump_rad} rad)"
@@ -470,6 +477,8 @@ class ArmPlanner:
                 raise PlanningError(msg)
             bad = self.first_invalid(np.vstack([previous, arm]), ctx)
             if bad is not None:
+                if partial and len(out) > 1:
+                    break
                 msg = (
                     f"Cartesian path of {frame} is blocked at waypoint {k} {where}: "
                     f"{self.explain(bad, ctx)}"

@@ -96,6 +96,25 @@ class Trajectory:
         i = int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 1))
         return self.segments[i]
 
+    def with_pause(self, at: float, pause: float) -> Trajectory:
+        """A copy that holds still for ``pause`` s at the first row at or after ``at`` s.
+
+        Used to let the arm settle before a guarded descent (OceanWATERS waits 2 s).
+        """
+        i = int(np.searchsorted(self.times, at - 1e-9))
+        if pause <= 0 or i >= len(self.times):
+            return self
+        velocities = self.velocities.copy()
+        velocities[i] = 0.0
+        return Trajectory(
+            self.joints,
+            np.concatenate([self.times[: i + 1], self.times[i:] + pause]),
+            np.vstack([self.positions[: i + 1], self.positions[i:]]),
+            np.vstack([velocities[: i + 1], velocities[i:]]),
+            (*self.segments[: i + 1], *self.segments[i:]),
+            self.operation,
+        )
+
     def segment_span(self, label: str) -> tuple[float, float] | None:
         """(first, last) time (s) of the rows of segment ``label``, or None if absent."""
         rows = [i for i, s in enumerate(self.segments) if s == label]
