@@ -400,8 +400,8 @@ def yade_version() -> str:
         ).stdout
     except (DemRunError, OSError, subprocess.TimeoutExpired):
         return ""
-    lines = [line for line in out.splitlines() if "version" in line.lower()]
-    return lines[-1].strip() if lines else ""
+    lines = [line for line in out.splitlines() if "version:" in line.lower()]
+    return lines[-1].split(":", 1)[1].strip() if lines else ""
 
 
 def plot_table(table: ForceTable, materials: dict[int, Soil], path: Path) -> None:
