@@ -42,6 +42,9 @@ class PlannerConfig:
         rrt_cost_threshold_factor: RRT* stops once its cost is below this factor times the cost
             of the (invalid) straight joint-space segment.
         rrt_attempts: solves tried (seeds ``seed``, ``seed + 1``, ...) before giving up.
+        connect_time_limit_s: s (wall), time cap of the RRTConnect feasibility search tried
+            when RRT* found nothing within its caps (its path is then shortened by the same
+            objective); 0 disables it.
         seed: OMPL random seed; the same request and state give the same plan.
         path_length_weight: J/rad, weight of joint-space path length in the work objective.
         ik_restarts: random restarts of IK for free-space goals (Cartesian steps use none).
@@ -59,6 +62,7 @@ class PlannerConfig:
     rrt_time_limit_s: float = 0.5
     rrt_cost_threshold_factor: float = 1.5
     rrt_attempts: int = 2
+    connect_time_limit_s: float = 2.0
     seed: int = 42
     path_length_weight: float = 0.05
     ik_restarts: int = 40

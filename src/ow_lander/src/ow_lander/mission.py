@@ -31,6 +31,7 @@ from ow_lander.errors import ConfigError
 from ow_lander.mission_config import DEFAULT_MISSION_FILE, MissionConfig
 from ow_lander.stack import HarnessError, NodeProcess, RosStack, private_master
 from ow_lander.terrain import HeightMap
+from ow_power.config import DEFAULT_RECORD_TOPICS
 
 #: Steps after which a render of the arm is taken.
 RENDER_AFTER = ("guarded_move", "grind", "dig_sample", "deliver_sample")
@@ -318,7 +319,12 @@ class MissionRunner:
                 "trajectory_dir": str(self.run_dir / "trajectories"),
             },
             "power": {},
-            "record": {"output_dir": str(self.run_dir / "bags"), "prefix": "mission"},
+            "record": {
+                "output_dir": str(self.run_dir / "bags"),
+                "prefix": "mission",
+                # The terrain too: the trench the mission dug is part of its result.
+                "topics": [*DEFAULT_RECORD_TOPICS, "/sim/terrain", "/sim/scoop_tip_ground"],
+            },
         }
         for node, extra in c.node_params.items():
             params.setdefault(node, {}).update(extra)

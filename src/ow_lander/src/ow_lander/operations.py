@@ -57,7 +57,10 @@ DOCK_CENTRE = (0.555, -0.35, 0.65)
 #: m, height of the scoop tip above the dock centre when pouring.
 DOCK_POUR_HEIGHT = 0.25
 #: m, clearance above the terrain a tool is lifted to when an operation starts in contact.
-LIFT_OFF_CLEARANCE = 0.05
+LIFT_OFF_CLEARANCE = 0.10
+#: m, a tool closer than this to the terrain at the start of an operation is lifted off first
+#: (it may sit in a dent it made, whose walls the next motion would scrape).
+CONTACT_CLEARANCE = 0.02
 #: rad, how far the scoop is tipped (about its own y axis) to pour.
 POUR_TILT = math.radians(110)
 #: rad, (shoulder pitch, prox, dist, hand, scoop) of the reference configurations, aimed by the
@@ -142,17 +145,21 @@ def _finite(values: Mapping[str, Any], *names: str) -> None:
             raise PlanningError(msg)
 
 
+#: Request fields are float32: 0.1 arrives as 0.10000000149. Limits are compared with this slack.
+FLOAT32_SLACK = 1e-6
+
+
 def _depth(depth: float, limit: float, tool: str) -> None:
     if depth < 0:
         msg = f"depth={depth:.3f} m must not be negative (it is measured down from the ground)"
         raise PlanningError(msg)
-    if depth > limit:
+    if depth > limit + FLOAT32_SLACK:
         msg = f"depth={depth:.3f} m is deeper than the {tool} can go (max {limit:.2f} m)"
         raise PlanningError(msg)
 
 
 def _length(length: float) -> None:
-    if not 0 < length <= MAX_LENGTH:
+    if not 0 < length <= MAX_LENGTH + FLOAT32_SLACK:
         msg = f"length={length:.3f} m must be in (0, {MAX_LENGTH}] m"
         raise PlanningError(msg)
 
@@ -233,7 +240,12 @@ class Operations:
     def _ctx(
         self, q: FloatArray, terrain: HeightMap | None, tool: str | None = None
     ) -> CheckContext:
-        links = tuple(link for link in ARM_LINKS if link != tool)
+        """What states are checked against. In free space every arm link stays above the
+        terrain; while a ``tool`` works in the ground, the tool end (hand, scoop, grinder) may
+        go below the original surface into the trench, as in OceanWATERS, where only the scoop
+        and the grinder touch the terrain and the hand never does."""
+        tool_end = {tool, "l_hand", SCOOP_LINK, GRINDER_LINK} if tool else set()
+        links = tuple(link for link in ARM_LINKS if link not in tool_end)
         return CheckContext(
             np.asarray(q, dtype=np.float64), terrain, links, self.planner.config.terrain_margin_m
         )
@@ -271,15 +283,18 @@ class Operations:
         self, start: FloatArray, goal: FloatArray, reference: FloatArray, ctx: CheckContext
     ) -> FloatArray:
         """Free-space path to ``goal``: direct, else through the operation's reference pose
-        (as OceanWATERS' joint-space pre-configurations), else RRT*."""
+        (as OceanWATERS' joint-space pre-configurations), else through the unstowed "safe"
+        configuration (the paper's reason for having one), else RRT*."""
         planner = self.planner
-        if planner.is_valid(reference, ctx):
-            via = np.vstack([start, reference, goal])
-            if planner.first_invalid(np.vstack([start, goal]), ctx) is not None and (
-                planner.first_invalid(via, ctx) is None
-            ):
-                planner.stats.direct_segments += 2
-                return via
+        if planner.first_invalid(np.vstack([start, goal]), ctx) is not None:
+            safe = np.array([UNSTOWED[j] for j in ARM_JOINTS])
+            for vias in ([reference], [safe, reference], [safe]):
+                path = np.vstack([start, *vias, goal])
+                if all(planner.is_valid(v, ctx) for v in vias) and (
+                    planner.first_invalid(path, ctx) is None
+                ):
+                    planner.stats.direct_segments += len(vias) + 1
+                    return path
         return planner.plan_free(start, goal, ctx)
 
     def _start(self, q: FloatArray, terrain: HeightMap | None) -> FloatArray:
@@ -300,9 +315,9 @@ class Operations:
     ) -> OperationPlan:
         """Plan operation ``name`` (a service name) from configuration ``q``.
 
-        When the scoop or grinder starts in the terrain (after a guarded move, a dig or a
-        grind), the plan begins with a straight lift of that tool's tip until it is
-        ``LIFT_OFF_CLEARANCE`` above the terrain.
+        When the scoop or grinder starts in or within ``CONTACT_CLEARANCE`` of the terrain
+        (after a guarded move, a dig or a grind), the plan begins with a straight lift of that
+        tool's tip to ``LIFT_OFF_CLEARANCE`` above the terrain.
 
         Raises:
             PlanningError: unknown operation, invalid request, or no valid plan.
@@ -328,11 +343,14 @@ class Operations:
         return plan
 
     def _lift_off(self, q: FloatArray, terrain: HeightMap | None) -> FloatArray | None:
-        """(n, 6) rad path lifting a tool out of the terrain, or None when ``q`` is valid."""
+        """(n, 6) rad path lifting a tool off the terrain, or None when no tool is near it."""
         arm = self.planner.arm(q)
-        if terrain is None or self.planner.is_valid(arm, self._ctx(q, terrain)):
-            return None
         tools = (SCOOP_LINK, GRINDER_LINK)
+        if terrain is None:
+            return None
+        near = self.model.collision_report(q, terrain, tools, CONTACT_CLEARANCE)
+        if near.terrain_link is None and self.planner.is_valid(arm, self._ctx(q, terrain)):
+            return None
         ctx = CheckContext(
             np.asarray(q, dtype=np.float64),
             terrain,
@@ -342,15 +360,15 @@ class Operations:
         if not self.planner.is_valid(arm, ctx):
             msg = f"the arm's current configuration is invalid: {self.planner.explain(arm, ctx)}"
             raise PlanningError(msg)
-        report = self.model.collision_report(q, terrain, tools)
-        frame = SCOOP_TIP_FRAME if report.terrain_link == SCOOP_LINK else GRINDER_TIP_FRAME
+        frame = SCOOP_TIP_FRAME if near.terrain_link == SCOOP_LINK else GRINDER_TIP_FRAME
+        penetration = max(near.terrain_penetration - CONTACT_CLEARANCE, 0.0)
         here = self._position(arm, q, frame)
         rotation = self._rotation(arm, q, frame)
-        target = here + np.array([0.0, 0.0, report.terrain_penetration + LIFT_OFF_CLEARANCE])
+        target = here + np.array([0.0, 0.0, penetration + LIFT_OFF_CLEARANCE])
         path = self._cartesian(arm, frame, target, lambda _: rotation, ctx)
         if not self.planner.is_valid(path[-1], self._ctx(q, terrain)):
             end = self.planner.explain(path[-1], self._ctx(q, terrain))
-            msg = f"lifting {report.terrain_link} out of the terrain did not free the arm: {end}"
+            msg = f"lifting {near.terrain_link} off the terrain did not free the arm: {end}"
             raise PlanningError(msg)
         return path
 

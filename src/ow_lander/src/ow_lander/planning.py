@@ -206,7 +206,9 @@ class ArmPlanner:
         """A collision-free joint-space path from ``start`` to ``goal`` (both (6,) rad).
 
         The direct segment is kept when it is valid at the joint resolution; otherwise RRT*
-        (seeded, capped by iterations, time and a cost threshold) and a greedy shortcut.
+        (seeded, capped by iterations, time and a cost threshold) and a greedy shortcut; when
+        RRT* finds nothing within its caps, a seeded RRTConnect search for any valid path
+        (``connect_time_limit_s``), shortened the same way.
 
         Args:
             start: (6,) rad.
@@ -242,9 +244,19 @@ class ArmPlanner:
                 if self.first_invalid(path, ctx) is None:
                     self.stats.rrt_segments += 1
                     return path
+        if self.config.connect_time_limit_s > 0:
+            path = self._rrt_star(
+                start, goal, ctx, self.config.seed, resolutions[-1], objective, connect=True
+            )
+            if path is not None:
+                path = self._shortcut(path, ctx, objective)
+                if self.first_invalid(path, ctx) is None:
+                    self.stats.rrt_segments += 1
+                    return path
         msg = (
             f"no collision-free path found by RRT* within {self.config.rrt_max_iterations} "
-            f"iterations / {self.config.rrt_time_limit_s} s "
+            f"iterations / {self.config.rrt_time_limit_s} s, nor by RRTConnect within "
+            f"{self.config.connect_time_limit_s} s "
             f"(the straight segment is blocked: {self.explain(self._blocked(direct, ctx), ctx)})"
         )
         raise PlanningError(msg)
@@ -261,7 +273,10 @@ class ArmPlanner:
         seed: int,
         resolution: float,
         objective: str,
+        connect: bool = False,
     ) -> FloatArray | None:
+        """One seeded sample-based solve: RRT* with the objective, or RRTConnect (``connect``,
+        feasibility only); None when it found no exact solution within its caps."""
         space = ob.RealVectorStateSpace(len(self.idx))
         bounds = ob.RealVectorBounds(len(self.idx))
         for i in range(len(self.idx)):
@@ -298,19 +313,26 @@ class ArmPlanner:
             threshold = float(np.linalg.norm(goal - start))
         obj.setCostThreshold(ob.Cost(threshold * self.config.rrt_cost_threshold_factor))
         pdef.setOptimizationObjective(obj)
-        planner = og.RRTstar(si)
-        planner.setRange(self.config.rrt_range_rad)
-        planner.setGoalBias(self.config.rrt_goal_bias)
-        planner.setRewireFactor(self.config.rrt_rewire_factor)
+        planner: og.RRTstar | og.RRTConnect
+        if connect:
+            planner = og.RRTConnect(si)
+            planner.setRange(self.config.rrt_range_rad)
+            cap, time_limit = 100 * self.config.rrt_max_iterations, self.config.connect_time_limit_s
+        else:
+            planner = og.RRTstar(si)
+            planner.setRange(self.config.rrt_range_rad)
+            planner.setGoalBias(self.config.rrt_goal_bias)
+            planner.setRewireFactor(self.config.rrt_rewire_factor)
+            cap, time_limit = self.config.rrt_max_iterations, self.config.rrt_time_limit_s
         planner.setProblemDefinition(pdef)
         planner.setup()
         iterations = 0
-        deadline = time.monotonic() + self.config.rrt_time_limit_s
+        deadline = time.monotonic() + time_limit
 
         def stop() -> bool:
             nonlocal iterations
             iterations += 1
-            return iterations > self.config.rrt_max_iterations or time.monotonic() > deadline
+            return iterations > cap or time.monotonic() > deadline
 
         status = planner.solve(ob.PlannerTerminationCondition(stop))
         self.stats.rrt_iterations += iterations
