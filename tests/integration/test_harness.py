@@ -48,7 +48,7 @@ def test_private_params_are_set_before_start_and_removed_after(ros_master):
 
 def test_a_node_that_dies_reports_its_log(ros_master):
     stack = RosStack(ros_master)
-    with pytest.raises(HarnessError, match="(?s)exited.*cannot read mission file"):
+    with pytest.raises(HarnessError, match=r"(?s)exited.*cannot read mission file"):
         stack.start_node(
             "ow_lander",
             "mission",
