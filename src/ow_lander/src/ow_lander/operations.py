@@ -384,7 +384,9 @@ class Operations:
         self, name: str, pose: Mapping[str, float], q: FloatArray, terrain: HeightMap | None
     ) -> OperationPlan:
         start = self._start(q, terrain)
-        goal = np.array([pose[j] for j in ARM_JOINTS])
+        # The hand and scoop yaw turn freely (continuous in the original): reach the named
+        # angle by the shorter way round from where the joint is.
+        goal = self.planner.unwrap(np.array([pose[j] for j in ARM_JOINTS]), start)
         path = self.planner.plan_free(start, goal, self._ctx(q, terrain))
         return OperationPlan(name, [PathSegment(name, path)], {})
 

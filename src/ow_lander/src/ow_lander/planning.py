@@ -205,7 +205,8 @@ class ArmPlanner:
     ) -> FloatArray:
         """A collision-free joint-space path from ``start`` to ``goal`` (both (6,) rad).
 
-        The direct segment is kept when it is valid at the joint resolution; otherwise RRT*
+        The direct segment is kept when it is valid at the joint resolution; then two staged
+        straight moves (wrist first or shoulder first); otherwise RRT*
         (seeded, capped by iterations, time and a cost threshold) and a greedy shortcut; when
         RRT* finds nothing within its caps, a seeded RRTConnect search for any valid path
         (``connect_time_limit_s``), shortened the same way.
@@ -232,6 +233,10 @@ class ArmPlanner:
         if self.first_invalid(direct, ctx) is None:
             self.stats.direct_segments += 1
             return direct
+        staged = self._staged(start, goal, ctx)
+        if staged is not None:
+            self.stats.direct_segments += 2
+            return staged
         resolutions = (self.config.rrt_check_resolution_rad, self.config.joint_resolution_rad)
         for resolution in resolutions:
             for attempt in range(self.config.rrt_attempts):
@@ -260,6 +265,20 @@ class ArmPlanner:
             f"(the straight segment is blocked: {self.explain(self._blocked(direct, ctx), ctx)})"
         )
         raise PlanningError(msg)
+
+    def _staged(self, start: FloatArray, goal: FloatArray, ctx: CheckContext) -> FloatArray | None:
+        """Two straight joint moves, as an operator would: the wrist (distal pitch, hand and
+        scoop yaw) first and then the shoulder and proximal joints, or the other way round.
+        The cheaper valid one, or None."""
+        wrist = slice(3, 6)
+        candidates = []
+        for first in (np.r_[start[:3], goal[wrist]], np.r_[goal[:3], start[wrist]]):
+            path = np.vstack([start, first, goal])
+            if self.is_valid(first, ctx) and self.first_invalid(path, ctx) is None:
+                candidates.append(path)
+        if not candidates:
+            return None
+        return min(candidates, key=lambda path: self.cost(path, ctx.base, OBJECTIVE_STEP_RAD))
 
     def _blocked(self, path: FloatArray, ctx: CheckContext) -> FloatArray:
         state = self.first_invalid(path, ctx)
