@@ -109,16 +109,22 @@ def main() -> None:
             )
             watch = ClockWatch()
             rospy.Subscriber("/clock", Clock, watch.on_clock, queue_size=100)
-            forces: list[float] = []
-            depths: list[float] = []
+            # (sim time s, value): the digging window is selected by stamp.
+            forces: list[tuple[float, float]] = []
+            depths: list[tuple[float, float]] = []
             rospy.Subscriber(
                 "/sim/scoop_wrench",
                 WrenchStamped,
-                lambda m: forces.append(abs(m.wrench.force.z) + abs(m.wrench.force.x)),
+                lambda m: forces.append(
+                    (m.header.stamp.to_sec(), abs(m.wrench.force.z) + abs(m.wrench.force.x))
+                ),
                 queue_size=1000,
             )
             rospy.Subscriber(
-                "/sim/scoop_state", ToolState, lambda m: depths.append(m.depth), queue_size=1000
+                "/sim/scoop_state",
+                ToolState,
+                lambda m: depths.append((m.header.stamp.to_sec(), m.depth)),
+                queue_size=1000,
             )
             counts = {topic: 0 for topic in OUTPUTS}
             for topic in OUTPUTS:
@@ -152,15 +158,16 @@ def main() -> None:
             msg.header.stamp = rospy.Time.from_sec(start + 1.0)
             commands.publish(msg)
             time.sleep(0.5)
-            forces.clear()
-            depths.clear()
             rospy.ServiceProxy("/sim/resume", Trigger)()
             wall_b0 = watch.wait(start + 18.0)
-            n_forces = len(forces)
-            n_depths = len(depths)
             wall_b1 = watch.wait(start + 78.0)
-            window_forces = np.array(forces[n_forces:])
-            window_depths = np.array(depths[n_depths:])
+            time.sleep(0.5)  # the last messages of the window
+
+            def window(samples: list[tuple[float, float]]) -> np.ndarray:
+                return np.array([v for t, v in samples if start + 18.0 < t <= start + 78.0])
+
+            window_forces = window(forces)
+            window_depths = window(depths)
             line(
                 "sim_rtf_digging",
                 60.0 / (wall_b1 - wall_b0),

@@ -174,8 +174,13 @@ def test_outputs(fresh):
     assert terrain.rows * terrain.cols == len(terrain.heights)
     buffer = tf2_ros.Buffer(debug=False)
     tf2_ros.TransformListener(buffer)
-    fresh.steps(20)
-    tip = buffer.lookup_transform("base_link", "l_scoop_tip", rospy.Time(0), rospy.Duration(5.0))
+    # The listener connects asynchronously, and while paused the sim time a lookup timeout
+    # counts in does not advance: step until the transforms arrive.
+    deadline = time.monotonic() + 10.0
+    while not buffer.can_transform("base_link", "l_scoop_tip", rospy.Time(0)):
+        assert time.monotonic() < deadline, "no tf from the sim within 10 s"
+        fresh.steps(20)
+    tip = buffer.lookup_transform("base_link", "l_scoop_tip", rospy.Time(0))
     assert tip.transform.translation.z > 0.0  # stowed: the scoop is up on the lander deck
 
 
@@ -192,7 +197,7 @@ def test_setpoint_step_settles(fresh, record_property):
     outside = np.nonzero(np.abs(response - 1.0) > 0.02)[0]
     settling_s = times[outside[-1] + 1] - times[0] if len(outside) else 0.0
     overshoot = max(0.0, float(response.max()) - 1.0)
-    record_property("j_shou_yaw_overshoot_percent", round(100 * overshoot, 2))
+    record_property("j_shou_yaw_overshoot_percent", round(100 * float(overshoot), 2))
     record_property("j_shou_yaw_settling_time_2pct_s", round(float(settling_s), 3))
     print(
         f"j_shou_yaw step 0.2 rad: overshoot {100 * overshoot:.2f} %, settling {settling_s:.2f} s"

@@ -1,12 +1,21 @@
-"""tf transforms built from URDF joints agree with pinocchio's forward kinematics."""
+"""tf transforms built from URDF joints agree with pinocchio; the wire serialisers with genpy."""
 
 from __future__ import annotations
 
+import io
+
+import genpy
 import numpy as np
 import pinocchio as pin
+import pytest
+from geometry_msgs.msg import PointStamped, WrenchStamped
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from tf2_msgs.msg import TFMessage
 
 from ow_lander.description import URDF_PATH
-from ow_sim_bullet.conversions import joint_frames, quaternion_from_matrix, stamp
+from ow_sim_bullet import wire
+from ow_sim_bullet.conversions import joint_frames, quaternion_from_matrix, stamp, transform_msg
 
 
 def quaternion_matrix(q: tuple[float, float, float, float]) -> np.ndarray:
@@ -46,3 +55,64 @@ def test_quaternion_from_matrix_round_trips():
 def test_stamp_is_exact_to_the_nanosecond():
     assert stamp(12.34).secs == 12 and stamp(12.34).nsecs == 340_000_000
     assert stamp(0.01 * 3).nsecs == 30_000_000
+
+
+def genpy_bytes(msg: genpy.Message, seq: int | None = None) -> bytes:
+    """genpy's serialisation, with the header sequence number rospy would set."""
+    if seq is not None:
+        msg.header.seq = seq
+    buffer = io.BytesIO()
+    msg.serialize(buffer)
+    return buffer.getvalue()
+
+
+#: s of sim time: ordinary, a whole second, and one that rounds up to the next nanosecond.
+TIMES = [0.0, 12.34, 3.0, 1.0 - 1e-10, 123456.789]
+
+
+@pytest.mark.parametrize("time_s", TIMES)
+def test_joint_state_wire_is_genpys_serialisation(time_s):
+    names = ["j_a", "j_long_name", "j_ü"]
+    rng = np.random.default_rng(1)
+    position, velocity, effort = rng.normal(size=(3, 3)) * 1e3
+    msg = JointState()
+    msg.header.stamp = stamp(time_s)
+    msg.name = names
+    msg.position, msg.velocity, msg.effort = position.tolist(), velocity.tolist(), effort.tolist()
+    expected = genpy_bytes(msg, seq=42)
+    assert wire.JointStateWire(names)(42, time_s, position, velocity, effort) == expected
+    decoded = JointState().deserialize(expected)
+    assert decoded.name == names and decoded.position == tuple(position)
+
+
+def test_joint_state_wire_refuses_arrays_of_the_wrong_length():
+    with pytest.raises(ValueError, match="expected 3 joint values, got 2"):
+        wire.JointStateWire(["a", "b", "c"])(1, 0.0, np.zeros(2), np.zeros(3), np.zeros(3))
+
+
+@pytest.mark.parametrize("time_s", TIMES)
+def test_tf_wire_is_genpys_serialisation_of_the_joint_transforms(time_s):
+    frames = [f for f in joint_frames(URDF_PATH.read_text()) if f.axis is not None]
+    joint_index = list(range(len(frames)))[::-1]
+    positions = np.random.default_rng(2).uniform(-3.0, 3.0, len(frames))
+    msg = TFMessage(
+        [transform_msg(f, positions[k], time_s) for f, k in zip(frames, joint_index, strict=True)]
+    )
+    assert wire.TfWire(frames, joint_index)(5, time_s, positions) == genpy_bytes(msg)
+
+
+@pytest.mark.parametrize("time_s", TIMES)
+def test_stamped_and_clock_wires_are_genpys_serialisation(time_s):
+    force, torque = np.array([1.5, -2.25, 1e-300]), np.array([-0.0, 3.0, 7e10])
+    wrench = WrenchStamped()
+    wrench.header.stamp, wrench.header.frame_id = stamp(time_s), "l_scoop"
+    f, t = wrench.wrench.force, wrench.wrench.torque
+    f.x, f.y, f.z = force.tolist()
+    t.x, t.y, t.z = torque.tolist()
+    assert wire.StampedWire("l_scoop").wrench(3, time_s, force, torque) == genpy_bytes(wrench, 3)
+    point = PointStamped()
+    point.header.stamp, point.header.frame_id = stamp(time_s), "base_link"
+    point.point.x, point.point.y, point.point.z = 1.7, -0.05, -0.155
+    serialised = wire.StampedWire("base_link").point(9, time_s, 1.7, -0.05, -0.155)
+    assert serialised == genpy_bytes(point, 9)
+    assert wire.clock(1, time_s) == genpy_bytes(Clock(clock=stamp(time_s)))

@@ -86,7 +86,9 @@ def test_holding_effort_is_the_gravity_torque_within_2_percent(sim, record_prope
             assert effort[joint] == pytest.approx(expected[joint], rel=0.02), joint
         else:
             assert abs(effort[joint] - expected[joint]) < 0.01, joint
-    record_property("holding_effort_vs_gravity", {j: (effort[j], expected[j]) for j in loaded})
+    record_property(
+        "holding_effort_vs_gravity", {j: (float(effort[j]), float(expected[j])) for j in loaded}
+    )
 
 
 @pytest.mark.parametrize("joint", ARM_JOINTS)
@@ -103,8 +105,8 @@ def test_setpoint_step_settles(sim, joint, record_property):
     outside = np.nonzero(np.abs(response - 1.0) > 0.02)[0]
     settling_s = (outside[-1] + 1) * sim.dt if len(outside) else 0.0
     overshoot = max(0.0, float(response.max()) - 1.0)
-    record_property("overshoot_percent", round(100 * overshoot, 2))
-    record_property("settling_time_2pct_s", round(settling_s, 3))
+    record_property("overshoot_percent", round(100 * float(overshoot), 2))
+    record_property("settling_time_2pct_s", round(float(settling_s), 3))
     print(f"{joint}: overshoot {100 * overshoot:.2f} %, 2 % settling time {settling_s:.2f} s")
     assert abs(response[-1] - 1.0) < 0.02
     assert overshoot < 0.2

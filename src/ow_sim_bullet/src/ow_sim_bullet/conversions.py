@@ -12,21 +12,25 @@ from dataclasses import dataclass
 
 import genpy
 import numpy as np
-from geometry_msgs.msg import PointStamped, TransformStamped, WrenchStamped
-from sensor_msgs.msg import JointState
+from geometry_msgs.msg import TransformStamped
 
 from ow_lander.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.msg import ToolState as ToolStateMsg
-from ow_sim_bullet.sim_core import FloatArray, JointSample, ToolSnapshot
+from ow_sim_bullet.sim_core import FloatArray, ToolSnapshot
 
 Quaternion = tuple[float, float, float, float]  # x, y, z, w
 
 
+def stamp_parts(time_s: float) -> tuple[int, int]:
+    """(secs, nsecs) of a sim time in seconds, rounded to the nanosecond."""
+    nanoseconds = round(time_s * 1e9)
+    return nanoseconds // 1_000_000_000, nanoseconds % 1_000_000_000
+
+
 def stamp(time_s: float) -> genpy.Time:
     """ROS time for a sim time in seconds (rounded to the nanosecond)."""
-    nanoseconds = round(time_s * 1e9)
-    return genpy.Time(nanoseconds // 1_000_000_000, nanoseconds % 1_000_000_000)
+    return genpy.Time(*stamp_parts(time_s))
 
 
 def quaternion_from_rpy(roll: float, pitch: float, yaw: float) -> Quaternion:
@@ -148,38 +152,6 @@ def transform_msg(frame: JointFrame, angle: float, time_s: float) -> TransformSt
     t.x, t.y, t.z = frame.translation
     r = msg.transform.rotation
     r.x, r.y, r.z, r.w = frame.rotation_at(angle)
-    return msg
-
-
-def joint_state_msg(sample: JointSample, damping: bool = False) -> JointState:
-    """/joint_states (effort = motor torque), or with ``damping`` the damping torques instead."""
-    msg = JointState()
-    msg.header.stamp = stamp(sample.time)
-    msg.name = list(sample.names)
-    msg.position = sample.position.tolist()
-    msg.velocity = sample.velocity.tolist()
-    msg.effort = (sample.damping_effort if damping else sample.effort).tolist()
-    return msg
-
-
-def wrench_msg(snapshot: ToolSnapshot) -> WrenchStamped:
-    """The mean contact + terrain-model wrench on a tool, in its link frame, about its origin."""
-    msg = WrenchStamped()
-    msg.header.stamp = stamp(snapshot.time)
-    msg.header.frame_id = snapshot.link
-    f, t = msg.wrench.force, msg.wrench.torque
-    f.x, f.y, f.z = (float(v) for v in snapshot.force)
-    t.x, t.y, t.z = (float(v) for v in snapshot.torque)
-    return msg
-
-
-def tip_ground_msg(snapshot: ToolSnapshot) -> PointStamped:
-    """Ground truth in base_link: x, y of the tool tip and z = terrain height there."""
-    msg = PointStamped()
-    msg.header.stamp = stamp(snapshot.time)
-    msg.header.frame_id = "base_link"
-    msg.point.x, msg.point.y = float(snapshot.tip[0]), float(snapshot.tip[1])
-    msg.point.z = snapshot.terrain_z
     return msg
 
 

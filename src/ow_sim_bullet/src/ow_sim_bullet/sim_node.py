@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import struct
 import threading
 import time
 import warnings
@@ -11,6 +12,7 @@ from functools import partial
 from typing import Any, TypeVar
 
 import rospy
+import rospy.impl.simtime
 import tf2_ros
 from geometry_msgs.msg import PointStamped, WrenchStamped
 from rosgraph_msgs.msg import Clock
@@ -33,7 +35,7 @@ from ow_msgs.srv import (
     StepSimulationRequest,
     StepSimulationResponse,
 )
-from ow_sim_bullet import conversions
+from ow_sim_bullet import conversions, wire
 from ow_sim_bullet.config import CONTROLLER_NAMES, PidGains, SimConfig
 from ow_sim_bullet.errors import CommandError, SimError
 from ow_sim_bullet.sim_core import TOOLS, BulletSim, ToolSnapshot, make_force_model
@@ -41,6 +43,10 @@ from ow_sim_bullet.terrains import parse_terrain_spec
 from ow_sim_bullet.trajectory import JointTrajectory
 
 T = TypeVar("T")
+
+_LENGTH = struct.Struct("<I")
+#: physics steps whose outputs are written together when running faster than real time.
+_FLUSH_STEPS = 4
 
 #: s of wall time a service waits for the simulation thread before giving up.
 _SERVICE_TIMEOUT = 60.0
@@ -59,6 +65,64 @@ class _Periodic:
         ticks = int((now + 1e-9) / self.period) + 1
         self.next_tick = ticks * self.period
         return True
+
+
+class _WirePublisher:
+    """A rospy publisher (queue_size None) that sends payloads serialised by :mod:`.wire`.
+
+    rospy's ``publish()`` costs ~8 us of Python a message on top of genpy's serialisation. This
+    frames the payloads (length prefix) and writes them to the publisher's connections the way
+    ``rospy.topics._PublisherImpl.publish`` does (rospy 1.15, the last ROS 1 release: its
+    ``publock``, ``seq``, ``connections``). Registration, connection handshakes and
+    ``get_num_connections`` stay rospy's.
+
+    Messages are queued by :meth:`publish` and written by :meth:`flush`, all queued messages
+    in one socket write: a loopback TCP write that wakes the subscriber costs 20-50 us of the
+    simulation thread on a busy machine, much more than the message. TCPROS is a stream of
+    length-prefixed messages, so subscribers receive exactly the same messages.
+
+    Args:
+        name: topic name.
+        data_class: message class (for the connection headers: type and md5sum).
+    """
+
+    def __init__(self, name: str, data_class: type) -> None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", SyntaxWarning)
+            self.publisher = rospy.Publisher(name, data_class, queue_size=None)
+        self._impl = self.publisher.impl
+        self._pending: list[bytes] = []
+
+    def publish(self, serialize: Callable[..., bytes], *args: Any) -> None:
+        """Queue ``serialize(seq, *args)`` for the subscribers (not built if there is none)."""
+        impl = self._impl
+        if not impl.connections:
+            return
+        with impl.publock:
+            impl.seq += 1
+            payload = serialize(impl.seq, *args)
+            self._pending += (_LENGTH.pack(len(payload)), payload)
+
+    def flush(self) -> None:
+        """Write the queued messages to every subscriber (blocks while a subscriber lags)."""
+        if not self._pending:
+            return
+        impl = self._impl
+        with impl.publock:
+            data = b"".join(self._pending)
+            self._pending.clear()
+            if impl.closed or rospy.is_shutdown():
+                return
+            for connection in list(impl.connections):
+                try:
+                    connection.write_data(data)
+                except Exception as error:  # what rospy does: drop the connection
+                    rospy.logdebug(f"sim: dropping a subscriber of {impl.resolved_name}: {error}")
+                    try:
+                        connection.close()
+                    except Exception as close_error:
+                        rospy.logdebug(f"sim: closing it failed too: {close_error}")
+            impl.message_data_sent += len(data)
 
 
 class SimNode:
@@ -114,6 +178,10 @@ class SimNode:
             f for f in conversions.joint_frames(URDF_PATH.read_text()) if f.axis is not None
         ]
         self._frame_joint_index = [self.sim.names.index(f.joint) for f in self._frames]
+        self._joint_state_wire = wire.JointStateWire(self.sim.names)
+        self._tf_wire = wire.TfWire(self._frames, self._frame_joint_index)
+        self._tool_wire = {tool: wire.StampedWire(link) for tool, (link, _) in TOOLS.items()}
+        self._base_wire = wire.StampedWire("base_link")
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
         self._queue: deque[Callable[[], None]] = deque()
@@ -121,27 +189,41 @@ class SimNode:
         self._shutdown = False
 
         # High-rate outputs publish synchronously (queue_size None): rospy's queued publishing
-        # hands every message to a writer thread, which costs ~110 us a message against ~30 us,
-        # and the simulator runs at tens of times real time. A subscriber that cannot keep up
-        # slows the simulation down instead of losing messages.
+        # hands every message to a writer thread, which costs ~110 us a message, and the
+        # simulator runs at tens of times real time. A subscriber that cannot keep up slows the
+        # simulation down instead of losing messages. They are serialised by .wire.
+        self._clock_pub = _WirePublisher("/clock", Clock)
+        self._joint_pub = _WirePublisher("/joint_states", JointState)
+        self._damping_pub = _WirePublisher("~joint_damping", JointState)
+        self._tf_pub = _WirePublisher("/tf", TFMessage)
+        self._wrench_pubs = {
+            tool: _WirePublisher(f"~{tool}_wrench", WrenchStamped) for tool in TOOLS
+        }
+        self._tip_ground_pub = _WirePublisher("~scoop_tip_ground", PointStamped)
+        #: in the order their queued messages are written: /clock first.
+        self._wire_pubs = [
+            self._clock_pub,
+            self._joint_pub,
+            self._damping_pub,
+            self._tf_pub,
+            *self._wrench_pubs.values(),
+            self._tip_ground_pub,
+        ]
+        self._unflushed_steps = 0
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", SyntaxWarning)
-            self._clock_pub = rospy.Publisher("/clock", Clock, queue_size=None)
-            self._joint_pub = rospy.Publisher("/joint_states", JointState, queue_size=None)
-            self._damping_pub = rospy.Publisher("~joint_damping", JointState, queue_size=None)
-            self._tf_pub = rospy.Publisher("/tf", TFMessage, queue_size=None)
-            self._wrench_pubs = {
-                tool: rospy.Publisher(f"~{tool}_wrench", WrenchStamped, queue_size=None)
-                for tool in TOOLS
-            }
-            self._tip_ground_pub = rospy.Publisher(
-                "~scoop_tip_ground", PointStamped, queue_size=None
-            )
             self._tool_pubs = {
                 tool: rospy.Publisher(f"~{tool}_state", ToolStateMsg, queue_size=None)
                 for tool in TOOLS
             }
         self._terrain_pub = rospy.Publisher("~terrain", HeightMapMsg, queue_size=1, latch=True)
+        # With /use_sim_time rospy subscribes every node to /clock, this one too. The sim is the
+        # clock: it sets rospy's time itself rather than receive its own /clock over TCP, a
+        # thread waking up and taking the GIL from the simulation thread at every tick.
+        own_clock = getattr(rospy.impl.simtime, "_clock_sub", None)
+        self._sets_rostime = own_clock is not None
+        if own_clock is not None:
+            own_clock.unregister()
         self._static_tf = tf2_ros.StaticTransformBroadcaster()
         self._static_tf.sendTransform(
             [
@@ -290,8 +372,8 @@ class SimNode:
 
         def take_steps() -> float:
             for _ in range(request.steps):
-                self.sim.step()
-                self._publish()
+                self._advance()
+            self._flush()
             return self.sim.time
 
         try:
@@ -352,6 +434,7 @@ class SimNode:
         pace_wall = time.monotonic()
         pace_sim = self.sim.time
         self._publish(force=True)
+        self._flush()
         while not rospy.is_shutdown():
             with self._wake:
                 while not self._shutdown and not self._queue and self._paused:
@@ -365,13 +448,14 @@ class SimNode:
             for command in commands:
                 command()
             if paused:
+                self._flush()
                 pace_wall, pace_sim = time.monotonic(), self.sim.time
                 continue
-            self.sim.step()
-            self._publish()
+            self._advance()
             if rtf > 0:
                 ahead = (self.sim.time - pace_sim) / rtf - (time.monotonic() - pace_wall)
                 if ahead > 0:
+                    self._flush()
                     time.sleep(ahead)
                 elif ahead < -0.5:
                     # Too slow to keep up: do not try to catch up later.
@@ -382,37 +466,53 @@ class SimNode:
         sim = self.sim
         now = sim.time
         if self._clock_tick.due(now) or force:
-            self._clock_pub.publish(Clock(clock=conversions.stamp(now)))
+            self._clock_pub.publish(wire.clock, now)
+            if self._sets_rostime:
+                rospy.rostime._set_rostime(rospy.Time(*conversions.stamp_parts(now)))
         sample = sim.sample
-        if self._joint_tick.due(sample.time) or force:
-            if self._joint_pub.get_num_connections():
-                self._joint_pub.publish(conversions.joint_state_msg(sample))
-            if self._damping_pub.get_num_connections():
-                self._damping_pub.publish(conversions.joint_state_msg(sample, damping=True))
-        if (self._tf_tick.due(sample.time) or force) and self._tf_pub.get_num_connections():
-            positions = sample.position
-            self._tf_pub.publish(
-                TFMessage(
-                    [
-                        conversions.transform_msg(frame, positions[k], sample.time)
-                        for frame, k in zip(self._frames, self._frame_joint_index, strict=True)
-                    ]
-                )
-            )
-        if self._wrench_tick.due(sample.time) or force:
+        t = sample.time
+        if self._joint_tick.due(t) or force:
+            joint_state = self._joint_state_wire
+            position, velocity = sample.position, sample.velocity
+            self._joint_pub.publish(joint_state, t, position, velocity, sample.effort)
+            self._damping_pub.publish(joint_state, t, position, velocity, sample.damping_effort)
+        if self._tf_tick.due(t) or force:
+            self._tf_pub.publish(self._tf_wire, t, sample.position)
+        if self._wrench_tick.due(t) or force:
             # Snapshots are taken even without subscribers: they reset the force averages.
             for tool, publisher in self._wrench_pubs.items():
                 snapshot = sim.tool_snapshot(tool)
                 self._snapshots[tool] = snapshot
-                if publisher.get_num_connections():
-                    publisher.publish(conversions.wrench_msg(snapshot))
-            if self._tip_ground_pub.get_num_connections():
-                self._tip_ground_pub.publish(conversions.tip_ground_msg(self._snapshots["scoop"]))
+                publisher.publish(
+                    self._tool_wire[tool].wrench, snapshot.time, snapshot.force, snapshot.torque
+                )
+            scoop = self._snapshots["scoop"]
+            self._tip_ground_pub.publish(
+                self._base_wire.point,
+                scoop.time,
+                float(scoop.tip[0]),
+                float(scoop.tip[1]),
+                scoop.terrain_z,
+            )
         if self._tool_tick.due(sample.time) or force:
             for tool, publisher in self._tool_pubs.items():
                 if tool in self._snapshots and publisher.get_num_connections():
                     publisher.publish(conversions.tool_state_msg(self._snapshots[tool]))
         self._publish_terrain_if_due()
+
+    def _advance(self) -> None:
+        """One physics step and its outputs (written every ``_FLUSH_STEPS`` steps)."""
+        self.sim.step()
+        self._publish()
+        self._unflushed_steps += 1
+        if self._unflushed_steps >= _FLUSH_STEPS:
+            self._flush()
+
+    def _flush(self) -> None:
+        """Write the queued high-rate messages."""
+        self._unflushed_steps = 0
+        for publisher in self._wire_pubs:
+            publisher.flush()
 
     def _publish_terrain_if_due(self) -> None:
         if self.sim.terrain_version == self._terrain_published_version:

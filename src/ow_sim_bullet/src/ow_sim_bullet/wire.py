@@ -1,0 +1,132 @@
+"""ROS wire format (TCPROS payloads) of the high-rate outputs, serialised without message objects.
+
+Building a genpy message and serialising it costs 10-60 us in Python (a TFMessage of nine frames
+~60 us); these serialisers write the same bytes from cached constant parts and ``struct``, in
+1-5 us. Each returns the payload of one message (without the 4-byte length prefix) for the
+header sequence number ``seq`` it is given; tests compare them byte for byte with genpy.
+
+No rospy here: :mod:`ow_sim_bullet.sim_node` hands the bytes to the publishers.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Sequence
+
+from ow_sim_bullet.conversions import JointFrame, stamp_parts
+from ow_sim_bullet.sim_core import FloatArray
+
+_U32 = struct.Struct("<I")
+_HEADER = struct.Struct("<3I")  # seq, stamp secs, stamp nsecs
+_STAMP = struct.Struct("<2I")
+_VECTOR3 = struct.Struct("<3d")
+_QUATERNION = struct.Struct("<4d")
+_WRENCH = struct.Struct("<6d")
+
+
+def _string(text: str) -> bytes:
+    data = text.encode()
+    return _U32.pack(len(data)) + data
+
+
+def _doubles(values: FloatArray) -> bytes:
+    return values.astype("<f8", copy=False).tobytes()
+
+
+def clock(seq: int, time_s: float) -> bytes:
+    """rosgraph_msgs/Clock at sim time ``time_s`` (s); ``seq`` is unused (no header)."""
+    return _STAMP.pack(*stamp_parts(time_s))
+
+
+class JointStateWire:
+    """sensor_msgs/JointState of fixed joint names, empty frame_id.
+
+    Args:
+        names: joint names, in the order of the arrays given to :meth:`__call__`.
+    """
+
+    def __init__(self, names: Sequence[str]) -> None:
+        count = _U32.pack(len(names))
+        self._names = _string("") + count + b"".join(_string(n) for n in names) + count
+        self._count = count
+        self._length = len(names)
+
+    def __call__(
+        self,
+        seq: int,
+        time_s: float,
+        position: FloatArray,
+        velocity: FloatArray,
+        effort: FloatArray,
+    ) -> bytes:
+        """The message; position rad, velocity rad/s, effort N m, each (n,)."""
+        for values in (position, velocity, effort):
+            if len(values) != self._length:
+                msg = f"expected {self._length} joint values, got {len(values)}"
+                raise ValueError(msg)
+        count = self._count
+        return b"".join(
+            (
+                _HEADER.pack(seq, *stamp_parts(time_s)),
+                self._names,
+                _doubles(position),
+                count,
+                _doubles(velocity),
+                count,
+                _doubles(effort),
+            )
+        )
+
+
+class TfWire:
+    """tf2_msgs/TFMessage of joint frames: one TransformStamped per frame, all stamped alike.
+
+    Args:
+        frames: the movable joints' frames (parent -> child).
+        joint_index: for each frame, the index of its joint in the position arrays.
+    """
+
+    def __init__(self, frames: Sequence[JointFrame], joint_index: Sequence[int]) -> None:
+        self._frames = list(frames)
+        self._joint_index = list(joint_index)
+        # Per frame: header seq (0: only a top-level header gets one), then after the stamp
+        # frame_id, child_frame_id and the translation; the rotation follows.
+        self._seq = _U32.pack(0)
+        self._after_stamp = [
+            _string(f.parent) + _string(f.child) + _VECTOR3.pack(*f.translation) for f in frames
+        ]
+        self._count = _U32.pack(len(self._frames))
+
+    def __call__(self, seq: int, time_s: float, positions: FloatArray) -> bytes:
+        """The message at sim time ``time_s`` for joint positions (rad); ``seq`` is unused."""
+        stamp = self._seq + _STAMP.pack(*stamp_parts(time_s))
+        angles = positions.tolist()
+        parts = [self._count]
+        for frame, k, after_stamp in zip(
+            self._frames, self._joint_index, self._after_stamp, strict=True
+        ):
+            parts += (stamp, after_stamp, _QUATERNION.pack(*frame.rotation_at(angles[k])))
+        return b"".join(parts)
+
+
+class StampedWire:
+    """Messages made of a std_msgs/Header with a fixed frame_id and doubles.
+
+    Args:
+        frame_id: the header's frame_id.
+    """
+
+    def __init__(self, frame_id: str) -> None:
+        self._frame_id = _string(frame_id)
+
+    def wrench(self, seq: int, time_s: float, force: FloatArray, torque: FloatArray) -> bytes:
+        """geometry_msgs/WrenchStamped; force (3,) N, torque (3,) N m."""
+        return (
+            _HEADER.pack(seq, *stamp_parts(time_s))
+            + self._frame_id
+            + _WRENCH.pack(*force.tolist(), *torque.tolist())
+        )
+
+    def point(self, seq: int, time_s: float, x: float, y: float, z: float) -> bytes:
+        """geometry_msgs/PointStamped; m."""
+        return _HEADER.pack(seq, *stamp_parts(time_s)) + self._frame_id + _VECTOR3.pack(x, y, z)
