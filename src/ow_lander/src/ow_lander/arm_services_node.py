@@ -38,6 +38,7 @@ import tf2_ros
 from geometry_msgs.msg import Point
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
 from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -203,8 +204,9 @@ class ArmServicesNode:
         except OwLanderError as error:
             rospy.logerr("arm_services: ignoring /sim/terrain: %s", error)
             return
-        with self._state_lock:
+        with self._state_changed:
             self._terrain = terrain
+            self._state_changed.notify_all()
 
     def _current_q(self) -> np.ndarray:
         """(9,) rad, the latest joint state; waits for the first one."""
@@ -223,7 +225,12 @@ class ArmServicesNode:
         raise PlanningError(msg)
 
     def _current_terrain(self) -> tuple[HeightMap, str]:
-        with self._state_lock:
+        """The latest /sim/terrain; right after start-up the latched message may still be on its
+        way, so wait up to ``terrain_wait_s`` for it before planning against the fallback."""
+        with self._state_changed:
+            self._state_changed.wait_for(
+                lambda: self._terrain is not None, timeout=self.config.terrain_wait_s
+            )
             terrain = self._terrain
         if terrain is None:
             note = (
@@ -408,10 +415,11 @@ class ArmServicesNode:
         if guarded is not None and cfg.guarded_settle_s > 0:
             trajectory = trajectory.with_pause(guarded[0], cfg.guarded_settle_s)
             guarded = (guarded[0] + cfg.guarded_settle_s, guarded[1] + cfg.guarded_settle_s)
-        with self._state_lock:
-            t_start = self._joint_stamp + cfg.start_delay_s
         if cfg.interface == "trajectory":
-            self.trajectory_pub.publish(self._trajectory_msg(trajectory, t_start))
+            t_start = self._send_trajectory(trajectory)
+        else:
+            with self._state_lock:
+                t_start = self._joint_stamp + cfg.start_delay_s
         if guarded is not None:
             self._guard = GuardWatch(t_start + guarded[0], t_start + guarded[1])
         try:
@@ -517,6 +525,48 @@ class ArmServicesNode:
         return ExecutionResult(
             False, f"no ground within {searched:.2f} m of the start of the descent", result.duration
         )
+
+    def _send_trajectory(self, trajectory: Trajectory) -> float:
+        """Hand ``trajectory`` to the simulation to start ``start_delay_s`` from now (sim time);
+        return that start time.
+
+        A simulation running many times faster than real time could pass the start time before
+        the message arrives, so its clock is paused while the message is delivered (when it
+        offers ``/sim/pause`` and ``/sim/resume``)."""
+        cfg = self.config.execution
+        paused = self._sim_clock("pause")
+        try:
+            if paused:
+                self._wait_quiet(cfg.delivery_wait_s)
+            with self._state_lock:
+                t_start = self._joint_stamp + cfg.start_delay_s
+            self.trajectory_pub.publish(self._trajectory_msg(trajectory, t_start))
+            if paused:
+                time.sleep(cfg.delivery_wait_s)
+        finally:
+            if paused:
+                self._sim_clock("resume")
+        return t_start
+
+    def _wait_quiet(self, quiet_s: float, limit_s: float = 1.0) -> None:
+        """Wait until no new /joint_states has arrived for ``quiet_s`` (wall): the newest one then
+        carries the paused simulation's time."""
+        deadline = time.monotonic() + limit_s
+        with self._state_changed:
+            while time.monotonic() < deadline:
+                stamp = self._joint_stamp
+                self._state_changed.wait(timeout=quiet_s)
+                if self._joint_stamp == stamp:
+                    return
+
+    def _sim_clock(self, action: str) -> bool:
+        """Call ``/sim/<action>`` (pause or resume); False when the simulation has none."""
+        name = f"/sim/{action}"
+        try:
+            rospy.wait_for_service(name, timeout=0.2)
+            return bool(rospy.ServiceProxy(name, Trigger)().success)
+        except (rospy.ROSException, rospy.ServiceException):
+            return False
 
     def _trajectory_msg(self, trajectory: Trajectory, t_start: float) -> JointTrajectory:
         msg = JointTrajectory()

@@ -103,6 +103,8 @@ class ExecutionConfig:
             the paper (faithful at real_time_factor 1; lags when the simulation runs faster than
             this node can stream).
         start_delay_s: s (simulation time) between sending a trajectory and its first row.
+        delivery_wait_s: s (wall), how long the simulation's clock stays paused while a
+            trajectory is delivered to it.
         command_rate_hz: Hz (simulation time), set-point rate of the "position_controllers"
             interface.
         goal_tolerance_rad: rad, every joint within this of the final set-point = arrived.
@@ -116,6 +118,7 @@ class ExecutionConfig:
 
     interface: str = "trajectory"
     start_delay_s: float = 0.05
+    delivery_wait_s: float = 0.02
     command_rate_hz: float = 50.0
     goal_tolerance_rad: float = 0.02
     max_tracking_error_rad: float = 0.3
@@ -134,6 +137,8 @@ class ArmServicesConfig:
         plan_and_execute: services also execute their plan (one call per operation).
         fallback_ground_z: m, height (base_link) of the flat terrain assumed until
             ``/sim/terrain`` has been received.
+        terrain_wait_s: s (wall), how long a request waits for a first ``/sim/terrain``
+            before planning against the fallback ground.
         planner: see :class:`PlannerConfig`.
         timing: see :class:`TimingConfig`.
         execution: see :class:`ExecutionConfig`.
@@ -142,6 +147,7 @@ class ArmServicesConfig:
     trajectory_dir: str = ""
     plan_and_execute: bool = False
     fallback_ground_z: float = -0.155
+    terrain_wait_s: float = 2.0
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     timing: TimingConfig = field(default_factory=TimingConfig)
     execution: ExecutionConfig = field(default_factory=ExecutionConfig)
@@ -268,6 +274,7 @@ def _check_ranges(config: ArmServicesConfig) -> None:
         "planner/ik_restarts": config.planner.ik_restarts,
         "execution/guarded_settle_s": config.execution.guarded_settle_s,
         "execution/start_delay_s": config.execution.start_delay_s,
+        "execution/delivery_wait_s": config.execution.delivery_wait_s,
     }
     for key, value in non_negative.items():
         if value < 0:
