@@ -129,6 +129,7 @@ class ArmServicesNode:
         self._joint_stamp = 0.0
         self._tf = tf2_ros.BufferCore(rospy.Duration(30.0))
         self._guard: GuardWatch | None = None
+        self._sim_clock_services: bool | None = None
         self._terrain: HeightMap | None = None
         self._fallback = HeightMap.flat(config.fallback_ground_z)
         self._operation_id = 0
@@ -560,12 +561,23 @@ class ArmServicesNode:
                     return
 
     def _sim_clock(self, action: str) -> bool:
-        """Call ``/sim/<action>`` (pause or resume); False when the simulation has none."""
-        name = f"/sim/{action}"
+        """Call ``/sim/<action>`` (pause or resume); False when the simulation has none.
+
+        Whether it has them is looked up once (a simulator without them is used without)."""
+        if self._sim_clock_services is None:
+            try:
+                for name in ("/sim/pause", "/sim/resume"):
+                    rospy.wait_for_service(name, timeout=self.config.execution.service_wait_s)
+                self._sim_clock_services = True
+            except rospy.ROSException:
+                rospy.logwarn("arm_services: no /sim/pause: trajectories start after a delay only")
+                self._sim_clock_services = False
+        if not self._sim_clock_services:
+            return False
         try:
-            rospy.wait_for_service(name, timeout=0.2)
-            return bool(rospy.ServiceProxy(name, Trigger)().success)
-        except (rospy.ROSException, rospy.ServiceException):
+            return bool(rospy.ServiceProxy(f"/sim/{action}", Trigger)().success)
+        except rospy.ServiceException as error:
+            rospy.logwarn("arm_services: /sim/%s failed: %s", action, error)
             return False
 
     def _trajectory_msg(self, trajectory: Trajectory, t_start: float) -> JointTrajectory:

@@ -105,6 +105,8 @@ class ExecutionConfig:
         start_delay_s: s (simulation time) between sending a trajectory and its first row.
         delivery_wait_s: s (wall), how long the simulation's clock stays paused while a
             trajectory is delivered to it.
+        service_wait_s: s (wall), how long to look for the simulation's ``/sim/pause`` and
+            ``/sim/resume`` services (once).
         command_rate_hz: Hz (simulation time), set-point rate of the "position_controllers"
             interface.
         goal_tolerance_rad: rad, every joint within this of the final set-point = arrived.
@@ -118,7 +120,8 @@ class ExecutionConfig:
 
     interface: str = "trajectory"
     start_delay_s: float = 0.05
-    delivery_wait_s: float = 0.02
+    delivery_wait_s: float = 0.1
+    service_wait_s: float = 5.0
     command_rate_hz: float = 50.0
     goal_tolerance_rad: float = 0.02
     max_tracking_error_rad: float = 0.3
@@ -275,6 +278,7 @@ def _check_ranges(config: ArmServicesConfig) -> None:
         "execution/guarded_settle_s": config.execution.guarded_settle_s,
         "execution/start_delay_s": config.execution.start_delay_s,
         "execution/delivery_wait_s": config.execution.delivery_wait_s,
+        "execution/service_wait_s": config.execution.service_wait_s,
     }
     for key, value in non_negative.items():
         if value < 0:
