@@ -22,20 +22,10 @@ from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from ow_lander.description import SCOOP_ABOVE_GROUND, SCOOP_BELOW_GROUND
 from ow_lander.testing import RosStack, private_master
 from ow_msgs.msg import ToolState
 
-#: rad, scoop level 5 cm above the flat ground at -0.155 (tip at x 1.70, y 0, z -0.10).
-ABOVE = {
-    "j_shou_yaw": -0.0308,
-    "j_shou_pitch": 1.3162,
-    "j_prox_pitch": -2.3062,
-    "j_dist_pitch": 0.99,
-    "j_hand_yaw": 0.0,
-    "j_scoop_yaw": 1.6016,
-}
-#: rad, the same with the tip 5 cm below the ground.
-BELOW = {**ABOVE, "j_shou_pitch": 1.0905, "j_prox_pitch": -2.2945, "j_dist_pitch": 1.204}
 OUTPUTS = [
     "/joint_states",
     "/sim/joint_damping",
@@ -86,7 +76,7 @@ def line(metric: str, value: float, unit: str, **extra: object) -> None:
 
 def trajectory(points: list[tuple[float, dict[str, float]]]) -> JointTrajectory:
     msg = JointTrajectory()
-    msg.joint_names = list(ABOVE)
+    msg.joint_names = list(SCOOP_ABOVE_GROUND)
     for t, pose in points:
         point = JointTrajectoryPoint()
         point.positions = [pose[j] for j in msg.joint_names]
@@ -150,10 +140,10 @@ def main() -> None:
             rospy.ServiceProxy("/sim/pause", Trigger)()
             time.sleep(0.5)
             start = watch.sim
-            points = [(10.0, ABOVE), (15.0, BELOW)]
+            points = [(10.0, SCOOP_ABOVE_GROUND), (15.0, SCOOP_BELOW_GROUND)]
             for k in range(12):
                 yaw = -0.15 if k % 2 == 0 else 0.10
-                points.append((20.0 + 5.0 * k, {**BELOW, "j_shou_yaw": yaw}))
+                points.append((20.0 + 5.0 * k, {**SCOOP_BELOW_GROUND, "j_shou_yaw": yaw}))
             msg = trajectory(points)
             msg.header.stamp = rospy.Time.from_sec(start + 1.0)
             commands.publish(msg)

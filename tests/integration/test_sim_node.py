@@ -18,19 +18,9 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from ow_lander.description import URDF_PATH
+from ow_lander.description import SCOOP_ABOVE_GROUND, SCOOP_BELOW_GROUND, URDF_PATH
 from ow_msgs.msg import HeightMap
 from ow_msgs.srv import SetPidGains, SetTerrain, StepSimulation
-
-ABOVE = {
-    "j_shou_yaw": -0.0308,
-    "j_shou_pitch": 1.3162,
-    "j_prox_pitch": -2.3062,
-    "j_dist_pitch": 0.99,
-    "j_hand_yaw": 0.0,
-    "j_scoop_yaw": 1.6016,
-}
-BELOW = {**ABOVE, "j_shou_pitch": 1.0905, "j_prox_pitch": -2.2945, "j_dist_pitch": 1.204}
 
 
 class Recorder:
@@ -265,7 +255,14 @@ def test_bad_input_gives_clear_errors_and_the_sim_keeps_running(fresh):
 
 def test_scoop_pushed_into_the_terrain_leaves_a_trench(fresh):
     assert fresh.terrain_srv(terrain="flat:-0.155").success
-    fresh.trajectory([(8.0, ABOVE), (12.0, BELOW), (14.0, BELOW), (18.0, ABOVE)])
+    fresh.trajectory(
+        [
+            (8.0, SCOOP_ABOVE_GROUND),
+            (12.0, SCOOP_BELOW_GROUND),
+            (14.0, SCOOP_BELOW_GROUND),
+            (18.0, SCOOP_ABOVE_GROUND),
+        ]
+    )
     fresh.steps(1000)
     above = fresh.tip_ground.take()[-1]
     assert above.point.z == pytest.approx(-0.155)

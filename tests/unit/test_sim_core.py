@@ -7,24 +7,19 @@ import pinocchio as pin
 import pybullet as pb
 import pytest
 
-from ow_lander.description import ARM_JOINTS, STOWED, UNSTOWED, URDF_PATH
+from ow_lander.description import (
+    ARM_JOINTS,
+    SCOOP_ABOVE_GROUND,
+    SCOOP_BELOW_GROUND,
+    STOWED,
+    UNSTOWED,
+    URDF_PATH,
+)
 from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.errors import CommandError
 from ow_sim_bullet.sim_core import BulletSim
 from ow_sim_bullet.terrains import flat
 from ow_sim_bullet.trajectory import JointTrajectory
-
-#: rad, scoop level with its tip 5 cm above ground at -0.155 (tip at x 1.70, y 0).
-ABOVE = {
-    "j_shou_yaw": -0.0308,
-    "j_shou_pitch": 1.3162,
-    "j_prox_pitch": -2.3062,
-    "j_dist_pitch": 0.99,
-    "j_hand_yaw": 0.0,
-    "j_scoop_yaw": 1.6016,
-}
-#: rad, the same with the tip 5 cm below that ground.
-BELOW = {**ABOVE, "j_shou_pitch": 1.0905, "j_prox_pitch": -2.2945, "j_dist_pitch": 1.204}
 
 
 def run(sim: BulletSim, seconds: float) -> None:
@@ -118,11 +113,11 @@ def test_two_runs_with_the_same_commands_are_bit_identical():
         simulation = BulletSim(SimConfig(), flat(-0.155))
         try:
             rows = []
-            move(simulation, ABOVE, 3.0, 0.0)
+            move(simulation, SCOOP_ABOVE_GROUND, 3.0, 0.0)
             for _ in range(200):
                 simulation.step()
                 rows.append(np.concatenate([simulation.sample.position, simulation.sample.effort]))
-            move(simulation, BELOW, 2.0, 1.0)
+            move(simulation, SCOOP_BELOW_GROUND, 2.0, 1.0)
             rows.append(np.concatenate([simulation.sample.position, simulation.sample.velocity]))
             return np.array(rows)
         finally:
@@ -133,18 +128,18 @@ def test_two_runs_with_the_same_commands_are_bit_identical():
 
 
 def test_scoop_pushed_into_the_terrain_touches_and_leaves_a_trench(sim):
-    move(sim, ABOVE, 8.0, 2.0)
+    move(sim, SCOOP_ABOVE_GROUND, 8.0, 2.0)
     above = sim.tool_snapshot("scoop")
     assert np.allclose(above.force, 0.0)
     x, y = above.tip[0], above.tip[1]
     assert sim.terrain_height(x, y) == pytest.approx(-0.155)
 
-    move(sim, BELOW, 4.0, 0.0)
+    move(sim, SCOOP_BELOW_GROUND, 4.0, 0.0)
     pushing = sim.tool_snapshot("scoop")
     assert np.linalg.norm(pushing.force) > 0.5
     run(sim, 2.0)
 
-    move(sim, ABOVE, 4.0, 1.0)
+    move(sim, SCOOP_ABOVE_GROUND, 4.0, 1.0)
     sim.tool_snapshot("scoop")  # the mean force since the last snapshot still has the lift-off
     run(sim, 5.0)
     assert np.allclose(sim.tool_snapshot("scoop").force, 0.0, atol=1e-9)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 
 from ow_dem_bridge.api import FloatArray
 from ow_dem_bridge.errors import GeometryError
@@ -42,30 +43,12 @@ def _floats(text: str | None, default: str) -> FloatArray:
     return np.array([float(v) for v in (text or default).split()], dtype=np.float64)
 
 
-def rpy_matrix(rpy: FloatArray) -> FloatArray:
-    """(3, 3) rotation of URDF fixed-axis roll, pitch, yaw (rad): R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    r, p, y = rpy
-    cr, sr, cp, sp, cy, sy = (
-        math.cos(r),
-        math.sin(r),
-        math.cos(p),
-        math.sin(p),
-        math.cos(y),
-        math.sin(y),
-    )
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
-
-
 def _origin(elem: ET.Element | None) -> tuple[FloatArray, FloatArray]:
     if elem is None:
         return np.zeros(3), np.eye(3)
-    return _floats(elem.get("xyz"), "0 0 0"), rpy_matrix(_floats(elem.get("rpy"), "0 0 0"))
+    return _floats(elem.get("xyz"), "0 0 0"), np.asarray(
+        pin.rpy.rpyToMatrix(_floats(elem.get("rpy"), "0 0 0"))
+    )
 
 
 def _find_link(root: ET.Element, link: str, urdf: Path) -> ET.Element:

@@ -47,6 +47,23 @@ STOWED: dict[str, float] = {
     "j_hand_yaw": 0.0,
     "j_scoop_yaw": 0.0,
 }
+#: rad, arm joints holding the scoop level with its tip 5 cm above flat ground at the default
+#: height z = -0.155 m (tip at x 1.70, y 0 in base_link); used by simulation tests and benches.
+SCOOP_ABOVE_GROUND: dict[str, float] = {
+    "j_shou_yaw": -0.0308,
+    "j_shou_pitch": 1.3162,
+    "j_prox_pitch": -2.3062,
+    "j_dist_pitch": 0.99,
+    "j_hand_yaw": 0.0,
+    "j_scoop_yaw": 1.6016,
+}
+#: rad, the same with the scoop tip 5 cm below that ground.
+SCOOP_BELOW_GROUND: dict[str, float] = {
+    **SCOOP_ABOVE_GROUND,
+    "j_shou_pitch": 1.0905,
+    "j_prox_pitch": -2.2945,
+    "j_dist_pitch": 1.204,
+}
 #: rad, the unstowed ("safe") configuration of the arm joints (later OceanWATERS arm_unstowed).
 UNSTOWED: dict[str, float] = {
     "j_shou_yaw": 0.0,

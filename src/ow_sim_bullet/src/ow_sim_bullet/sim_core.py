@@ -185,25 +185,6 @@ def _cross_rows(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.column_stack((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
 
 
-def _rpy_matrix(roll: float, pitch: float, yaw: float) -> FloatArray:
-    """URDF fixed-axis roll-pitch-yaw -> rotation matrix (Rz Ry Rx)."""
-    cr, sr, cp, sp, cy, sy = (
-        math.cos(roll),
-        math.sin(roll),
-        math.cos(pitch),
-        math.sin(pitch),
-        math.cos(yaw),
-        math.sin(yaw),
-    )
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
-
-
 def collision_surface_points(urdf_text: str, link_name: str, spacing: float) -> FloatArray:
     """Points on the surface of a link's box and cylinder collision shapes, in the link frame.
 
@@ -261,7 +242,7 @@ def collision_surface_points(urdf_text: str, link_name: str, spacing: float) -> 
         else:
             msg = f"collision of {link_name} must be boxes or cylinders to be carved with"
             raise ConfigError(msg)
-        clouds.append(local @ _rpy_matrix(*rpy).T + np.asarray(xyz))
+        clouds.append(local @ np.asarray(pin.rpy.rpyToMatrix(*rpy)).T + np.asarray(xyz))
     return np.vstack(clouds)
 
 
