@@ -224,3 +224,18 @@ def test_bad_requests_name_the_value_and_limit(ops, terrain, method, request_, m
     with pytest.raises(PlanningError) as error:
         getattr(ops, method)(_q(ops.model, UNSTOWED), terrain, request_)
     assert message in str(error.value)
+
+
+def test_approach_takes_the_near_turn_of_a_wrist_left_a_turn_away(ops, terrain):
+    # Where the mission's second grind left the arm: the hand yaw at 4.19 rad (= -2.09 + 2 pi).
+    left = dict(zip(ARM_JOINTS, [0.064, 1.478, -2.185, 0.707, 4.189, 0.0], strict=True))
+    q = _q(ops.model, {**UNSTOWED, **left})
+    request = dict(x=1.65, y=0.0, depth=0.05, length=0.2, ground_position=GROUND)
+    plan = ops.plan_dig_linear(q, terrain, request)
+    approach = plan.segments[0].waypoints
+    hand = ARM_JOINTS.index("j_hand_yaw")
+    # The same scoop pose as the operation's own turn, reached by turning the hand less than
+    # half a turn instead of 4.19 rad back through the elbow.
+    assert abs(approach[-1, hand] - approach[0, hand]) < math.pi
+    assert abs(np.diff(approach[:, hand])).sum() < math.pi
+    _check_collision_free(ops, q, terrain, plan)

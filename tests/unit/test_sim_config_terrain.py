@@ -58,6 +58,10 @@ def test_yaml_style_parameters_are_accepted():
         ({"terrain_file_center": [1.0]}, "terrain_file_center must be a list of two numbers"),
         ({"terrain_png_height_range": [1.0, -1.0]}, "terrain_png_height_range must be increasing"),
         (
+            {"carve_full_force": 5.0},
+            "carve_full_force=5.0 N must exceed terrain_yield_force=10.0 N",
+        ),
+        (
             {"gains": {"j_elbow": {"p": 1, "i": 0, "d": 0}}},
             "gains has unknown joint(s) ['j_elbow']",
         ),

@@ -114,3 +114,51 @@ def test_ground_detector_fires_when_descent_stops():
             break
     assert detector.contact is not None
     assert detector.contact[2] == pytest.approx(z)
+
+
+def test_steady_span_is_the_cruise_between_the_ramps():
+    trajectory = _timed(
+        [
+            PathSegment("approach", np.array([[0.0, 0.0], [0.1, 0.0]])),
+            PathSegment("guarded", np.array([[0.1, 0.0], [0.5, 0.0]]), speed_scale=0.5),
+        ]
+    )
+    first, last = trajectory.segment_span("guarded")
+    steady, braking = trajectory.steady_span("guarded")
+    rows = (trajectory.times >= first) & (trajectory.times <= last)
+    peak = trajectory.velocities[rows, 0].max()
+    assert peak == pytest.approx(0.1)  # half the velocity limit
+    i = int(np.searchsorted(trajectory.times, steady))
+    # The first row at the cruise speed, after a ramp from rest; the last before braking.
+    assert first < steady < last
+    assert trajectory.velocities[i, 0] == pytest.approx(peak, rel=0.02)
+    assert trajectory.velocities[i - 1, 0] < trajectory.velocities[i, 0] - 0.002
+    j = int(np.searchsorted(trajectory.times, braking))
+    assert steady < braking < last
+    assert trajectory.velocities[j, 0] == pytest.approx(peak, rel=0.02)
+    assert trajectory.velocities[j + 1, 0] < trajectory.velocities[j, 0] - 0.002
+    # A settle pause before the descent is not part of it.
+    paused = trajectory.with_pause(first, 2.0)
+    assert paused.steady_span("guarded")[0] == pytest.approx(steady + 2.0)
+    assert trajectory.steady_span("cut") is None
+
+
+def _descent(detector, speeds, dt=1 / 30):
+    """Feed a tip descending at each speed (m/s, positive down) in turn; the contact z or None."""
+    z, t = 0.0, 0.0
+    for v in speeds:
+        t += dt
+        z -= v * dt
+        if detector.update(t, np.array([1.7, 0.0, z])):
+            return detector.contact[2]
+    return None
+
+
+def test_a_threshold_from_the_steady_descent_sees_ground_that_gives():
+    # Ground that yields slows a 2.6 cm/s descent to 1 cm/s: found when the window is steady...
+    steady = [0.026] * 30 + [0.010] * 30
+    assert _descent(GroundDetector(), steady) is not None
+    # ...but a threshold taken on the acceleration ramp sits near zero velocity and misses it
+    # (why the node arms the detector on Trajectory.steady_span).
+    ramp = [0.026 * k / 8 for k in range(1, 8)]
+    assert _descent(GroundDetector(), ramp + steady) is None

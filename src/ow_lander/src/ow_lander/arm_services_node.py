@@ -7,7 +7,9 @@ ROS API
         ``/arm/publish_trajectory`` (PublishTrajectory).
     Subscribes: ``/joint_states`` (sensor_msgs/JointState, by joint name): the start of every
         plan and the execution monitor; ``/sim/terrain`` (ow_msgs/HeightMap, latched): the
-        terrain checked against; ``/tf``, ``/tf_static``: the scoop tip for ground detection.
+        terrain checked against; ``/tf``, ``/tf_static``: the scoop tip for ground detection;
+        ``/arm_end_effector_force_torque`` (geometry_msgs/WrenchStamped): the wrist force for
+        the force ground detector (``execution/ground_detector: force``).
     Publishes: ``/arm/operation`` (ow_msgs/Operation, START and END of every call, effective
         parameters as JSON); ``/sim/joint_trajectory`` (trajectory_msgs/JointTrajectory, the
         default execution interface) or ``/<joint>_position_controller/command``
@@ -28,6 +30,7 @@ import os
 import sys
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -35,18 +38,18 @@ from typing import Any
 import numpy as np
 import rospy
 import tf2_ros
-from geometry_msgs.msg import Point
+from geometry_msgs.msg import Point, WrenchStamped
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from ow_lander.config import ArmServicesConfig
+from ow_lander.config import ArmServicesConfig, ExecutionConfig
 from ow_lander.conversions import height_map_from_msg, joint_positions, jsonable, request_to_dict
 from ow_lander.description import ALL_JOINTS, ARM_JOINTS, BASE_FRAME, SCOOP_TIP_FRAME
 from ow_lander.errors import ConfigError, OwLanderError, PlanningError, TrajectoryError
-from ow_lander.ground_detection import GroundDetector
+from ow_lander.ground_detection import ForceDetector, GroundDetector
 from ow_lander.model import LanderModel
 from ow_lander.operations import OperationPlan, Operations
 from ow_lander.planning import ArmPlanner
@@ -99,15 +102,35 @@ class GuardWatch:
     Attributes:
         start: s (sim), first time of the descent (after the settle pause).
         end: s (sim), last time of the descent.
+        kind: "velocity" (the paper's detector) or "force" (the wrist force/torque sensor).
         detector: the paper's detector.
+        force_detector: the force detector.
         contact_time: s (sim) of the sample at which contact was declared, or None.
+        joints: recent (stamp s, joint positions by name) of the descent, to hold the arm where
+            it was at contact rather than where the running simulation has pushed it since.
     """
 
-    def __init__(self, start: float, end: float) -> None:
+    def __init__(self, start: float, end: float, config: ExecutionConfig) -> None:
         self.start = start
         self.end = end
-        self.detector = GroundDetector()
+        self.kind = config.ground_detector
+        self.detector = GroundDetector(relative_tolerance=config.ground_relative_tolerance)
+        self.force_detector = ForceDetector(config.ground_force_threshold_n)
         self.contact_time: float | None = None
+        self.joints: deque[tuple[float, dict[str, float]]] = deque(maxlen=500)
+
+    @property
+    def contact(self) -> np.ndarray | None:
+        """m, scoop tip (base_link) where the chosen detector declared contact, or None."""
+        detector = self.detector if self.kind == "velocity" else self.force_detector
+        return detector.contact
+
+    def joints_at_contact(self) -> dict[str, float] | None:
+        """Joint positions of the last /joint_states at or before the contact, or None."""
+        if self.contact_time is None:
+            return None
+        before = [values for stamp, values in self.joints if stamp <= self.contact_time]
+        return before[-1] if before else None
 
 
 class ArmServicesNode:
@@ -147,6 +170,9 @@ class ArmServicesNode:
         rospy.Subscriber("/tf", TFMessage, self._on_tf, queue_size=100)
         rospy.Subscriber("/tf_static", TFMessage, self._on_tf, callback_args=True, queue_size=10)
         rospy.Subscriber("/sim/terrain", HeightMapMsg, self._on_terrain, queue_size=1)
+        rospy.Subscriber(
+            "/arm_end_effector_force_torque", WrenchStamped, self._on_wrist_wrench, queue_size=50
+        )
         services: list[tuple[str, Any, Callable[[Any], Any]]] = [
             ("unstow", Unstow, self._plan_service("unstow", UnstowResponse)),
             ("stow", Stow, self._plan_service("stow", StowResponse)),
@@ -170,6 +196,9 @@ class ArmServicesNode:
         with self._state_changed:
             self._joints.update(values)
             self._joint_stamp = msg.header.stamp.to_sec()
+            guard = self._guard
+            if guard is not None and guard.contact_time is None:
+                guard.joints.append((self._joint_stamp, dict(self._joints)))
             self._state_changed.notify_all()
 
     def _on_tf(self, msg: TFMessage, static: bool = False) -> None:
@@ -182,7 +211,7 @@ class ArmServicesNode:
                 self._tf.set_transform(transform, "sim")
                 stamps.add(transform.header.stamp)
         guard = self._guard
-        if guard is None or guard.contact_time is not None:
+        if guard is None or guard.contact_time is not None or guard.kind != "velocity":
             return
         for stamp in sorted(stamps):
             t = stamp.to_sec()
@@ -390,6 +419,25 @@ class ArmServicesNode:
         finally:
             self._busy.release()
 
+    def _on_wrist_wrench(self, msg: WrenchStamped) -> None:
+        """During a guarded descent with the force detector, watch the wrist force."""
+        guard = self._guard
+        if guard is None or guard.contact_time is not None or guard.kind != "force":
+            return
+        t = msg.header.stamp.to_sec()
+        if not guard.start <= t <= guard.end:
+            return
+        try:  # the latest tip position (tf comes at its own rate)
+            tip = self._tf.lookup_transform_core(BASE_FRAME, SCOOP_TIP_FRAME, rospy.Time(0))
+        except tf2_ros.TransformException:
+            return
+        p = tip.transform.translation
+        f = msg.wrench.force
+        if guard.force_detector.update(np.array([f.x, f.y, f.z]), np.array([p.x, p.y, p.z])):
+            guard.contact_time = t
+            with self._state_changed:
+                self._state_changed.notify_all()
+
     def _execute(self, trajectory: Trajectory) -> ExecutionResult:
         """Execute ``trajectory`` on the simulation and watch it on simulation time.
 
@@ -416,13 +464,17 @@ class ArmServicesNode:
         if guarded is not None and cfg.guarded_settle_s > 0:
             trajectory = trajectory.with_pause(guarded[0], cfg.guarded_settle_s)
             guarded = (guarded[0] + cfg.guarded_settle_s, guarded[1] + cfg.guarded_settle_s)
+        # The detector watches the *steady* descent (the paper): samples of the acceleration
+        # ramp would set its threshold so close to zero velocity that ground which gives a
+        # little is never detected, and the braking ramp at the end would look like contact.
+        steady = trajectory.steady_span("guarded")
         if cfg.interface == "trajectory":
             t_start = self._send_trajectory(trajectory)
         else:
             with self._state_lock:
                 t_start = self._joint_stamp + cfg.start_delay_s
-        if guarded is not None:
-            self._guard = GuardWatch(t_start + guarded[0], t_start + guarded[1])
+        if guarded is not None and steady is not None:
+            self._guard = GuardWatch(t_start + steady[0], t_start + steady[1], cfg)
         try:
             result = self._monitor(trajectory, idx, t_start)
         finally:
@@ -460,7 +512,11 @@ class ArmServicesNode:
             t = stamp - t_start
             guard = self._guard
             if guard is not None and guard.contact_time is not None:
-                self._hold(q[idx])
+                # The simulation may have run on for a while (it runs many times faster than
+                # real time): go back to where the arm was at contact, not further into the
+                # ground it yields.
+                at_contact = guard.joints_at_contact()
+                self._hold(q[idx] if at_contact is None else self.model.q_from(at_contact)[idx])
                 return ExecutionResult(True, "ground found", t)
             if cfg.interface == "position_controllers" and stamp >= next_command:
                 setpoint = trajectory.sample(max(t + 1.0 / cfg.command_rate_hz, 0.0))
@@ -500,13 +556,9 @@ class ArmServicesNode:
         result: ExecutionResult,
     ) -> ExecutionResult:
         """Turn a finished guarded execution into found / not found, and publish it once."""
-        if (
-            guard is not None
-            and guard.contact_time is not None
-            and guard.detector.contact is not None
-        ):
+        if guard is not None and guard.contact_time is not None and guard.contact is not None:
             result.ground_found = True
-            result.ground_position = guard.detector.contact
+            result.ground_position = guard.contact
             result.message = (
                 f"ground found at z={result.ground_position[2]:.4f} m "
                 f"(t={guard.contact_time:.2f} s sim)"

@@ -38,7 +38,10 @@ class PlannerConfig:
         rrt_check_resolution_rad: rad, motion-check step inside RRT* (the result is re-checked
             at ``joint_resolution_rad``).
         rrt_max_iterations: iteration cap of one RRT* solve.
-        rrt_time_limit_s: s (wall), time cap of one RRT* solve.
+        rrt_improve_iterations: iterations RRT* keeps improving after its first solution (the
+            usual end of a solve: it depends on the request, not on the machine's load).
+        rrt_time_limit_s: s (wall), time cap of one RRT* solve (a safety net; a solve that
+            hits it is no longer reproducible).
         rrt_cost_threshold_factor: RRT* stops once its cost is below this factor times the cost
             of the (invalid) straight joint-space segment.
         rrt_attempts: solves tried (seeds ``seed``, ``seed + 1``, ...) before giving up.
@@ -58,10 +61,11 @@ class PlannerConfig:
     rrt_goal_bias: float = 0.1
     rrt_rewire_factor: float = 0.3
     rrt_check_resolution_rad: float = 0.04
-    rrt_max_iterations: int = 3000
-    rrt_time_limit_s: float = 0.5
+    rrt_max_iterations: int = 400
+    rrt_improve_iterations: int = 100
+    rrt_time_limit_s: float = 5.0
     rrt_cost_threshold_factor: float = 1.5
-    rrt_attempts: int = 2
+    rrt_attempts: int = 1
     connect_time_limit_s: float = 2.0
     seed: int = 42
     path_length_weight: float = 0.05
@@ -115,6 +119,15 @@ class ExecutionConfig:
         timeout_factor: the whole execution may take at most this factor times the
             trajectory's duration plus ``settle_timeout_s``.
         guarded_settle_s: s, pause before the guarded descent (OceanWATERS: 2 s).
+        ground_detector: "velocity": the paper's detector on the scoop tip's vertical velocity
+            from tf; "force": the later OceanWATERS detector, contact when the force measured
+            by the wrist force/torque sensor (``/arm_end_effector_force_torque``) rises by
+            ``ground_force_threshold_n`` over its value at the start of the steady descent.
+        ground_relative_tolerance: 1, the velocity detector's smallest margin above the steady
+            descent velocity, as a fraction of the descent speed (ours; the paper's margin is
+            one standard deviation, which a smooth simulation makes vanishingly small).
+        ground_force_threshold_n: N, rise of the wrist force that means contact (force
+            detector).
         joint_state_timeout_s: s (wall), how long to wait for /joint_states before refusing.
     """
 
@@ -128,6 +141,9 @@ class ExecutionConfig:
     settle_timeout_s: float = 10.0
     timeout_factor: float = 1.5
     guarded_settle_s: float = 2.0
+    ground_detector: str = "velocity"
+    ground_relative_tolerance: float = 0.3
+    ground_force_threshold_n: float = 10.0
     joint_state_timeout_s: float = 5.0
 
 
@@ -257,6 +273,7 @@ def _check_ranges(config: ArmServicesConfig) -> None:
         "planner/rrt_rewire_factor": config.planner.rrt_rewire_factor,
         "planner/rrt_check_resolution_rad": config.planner.rrt_check_resolution_rad,
         "planner/rrt_max_iterations": config.planner.rrt_max_iterations,
+        "planner/rrt_improve_iterations": config.planner.rrt_improve_iterations,
         "planner/rrt_time_limit_s": config.planner.rrt_time_limit_s,
         "planner/rrt_cost_threshold_factor": config.planner.rrt_cost_threshold_factor,
         "planner/rrt_attempts": config.planner.rrt_attempts,
@@ -267,6 +284,7 @@ def _check_ranges(config: ArmServicesConfig) -> None:
         "execution/settle_timeout_s": config.execution.settle_timeout_s,
         "execution/timeout_factor": config.execution.timeout_factor,
         "execution/joint_state_timeout_s": config.execution.joint_state_timeout_s,
+        "execution/ground_force_threshold_n": config.execution.ground_force_threshold_n,
     }
     for key, value in positive.items():
         _positive(value, key)
@@ -286,6 +304,14 @@ def _check_ranges(config: ArmServicesConfig) -> None:
             raise ConfigError(msg)
     if config.planner.seed == 0:
         msg = "parameter 'planner/seed' must be > 0 (OMPL treats 0 as 'no seed')"
+        raise ConfigError(msg)
+    if config.execution.ground_detector not in ("velocity", "force"):
+        detector = config.execution.ground_detector
+        msg = f"parameter 'execution/ground_detector' must be velocity or force, got {detector!r}"
+        raise ConfigError(msg)
+    if not 0 <= config.execution.ground_relative_tolerance < 1:
+        value = config.execution.ground_relative_tolerance
+        msg = f"parameter 'execution/ground_relative_tolerance' must be in [0, 1), got {value}"
         raise ConfigError(msg)
     for key in ("velocity_scale", "guarded_velocity_scale", "dig_velocity_scale"):
         value = getattr(config.timing, key)

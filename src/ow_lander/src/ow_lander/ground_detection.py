@@ -3,8 +3,10 @@
 The scoop tip's vertical velocity is smoothed by a moving average of five samples; the mean plus
 one standard deviation of the first five velocity samples is the threshold; contact is declared
 when the smoothed velocity exceeds it (the descent, a negative z velocity, slows down). The
-standard deviation is floored at ``min_tolerance`` (ours, 1 mm/s): with a perfectly smooth first
-window the paper's rule would fire on rounding noise.
+standard deviation is floored at ``min_tolerance`` (ours, 1 mm/s) and at ``relative_tolerance``
+times the mean descent speed (ours): with a perfectly smooth first window the paper's rule would
+fire on rounding noise or on the few per cent the tip speed varies along a Cartesian line of
+joint-space steps (Gazebo's noise gave the paper's threshold its width).
 """
 
 from __future__ import annotations
@@ -23,11 +25,16 @@ class GroundDetector:
     Args:
         window: samples of the moving average and of the threshold (paper: 5).
         min_tolerance: m/s, smallest margin above the first window's mean velocity.
+        relative_tolerance: smallest margin as a fraction of that mean's magnitude (ours, see
+            the module docstring).
     """
 
-    def __init__(self, window: int = 5, min_tolerance: float = 0.001) -> None:
+    def __init__(
+        self, window: int = 5, min_tolerance: float = 0.001, relative_tolerance: float = 0.0
+    ) -> None:
         self.window = window
         self.min_tolerance = min_tolerance
+        self.relative_tolerance = relative_tolerance
         self.reset()
 
     def reset(self) -> None:
@@ -53,10 +60,48 @@ class GroundDetector:
             if len(self._first) < self.window:
                 self._first.append(vz)
                 if len(self._first) == self.window:
-                    tolerance = max(float(np.std(self._first)), self.min_tolerance)
-                    self.threshold = float(np.mean(self._first)) + tolerance
+                    mean = float(np.mean(self._first))
+                    tolerance = max(
+                        float(np.std(self._first)),
+                        self.min_tolerance,
+                        self.relative_tolerance * abs(mean),
+                    )
+                    self.threshold = mean + tolerance
             elif self.threshold is not None and float(np.mean(self._velocities)) > self.threshold:
                 self.contact = position.copy()
         if self._last is None or t > self._last[0]:
             self._last = (t, position)
+        return self.contact is not None
+
+
+class ForceDetector:
+    """Contact when the wrist force rises by ``threshold`` N over its first reading (the tare),
+    as later OceanWATERS detects the ground with the force/torque sensor at ``j_dist_pitch``.
+
+    Args:
+        threshold: N, rise of the force magnitude (of the change from the tare) that is contact.
+    """
+
+    def __init__(self, threshold: float) -> None:
+        self.threshold = threshold
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the tare and any contact."""
+        self.tare: FloatArray | None = None
+        self.contact: FloatArray | None = None
+
+    def update(self, force: FloatArray, position: FloatArray) -> bool:
+        """Add a force reading (3,) N with the scoop tip ``position`` (3,) m at that time.
+
+        Returns:
+            True once contact has been detected (``contact`` holds the tip position then).
+        """
+        if self.contact is not None:
+            return True
+        force = np.asarray(force, dtype=np.float64)
+        if self.tare is None:
+            self.tare = force.copy()
+        elif float(np.linalg.norm(force - self.tare)) >= self.threshold:
+            self.contact = np.asarray(position, dtype=np.float64).copy()
         return self.contact is not None

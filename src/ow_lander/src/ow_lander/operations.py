@@ -284,13 +284,26 @@ class Operations:
     ) -> FloatArray:
         """Free-space path to ``goal``: direct, else through the operation's reference pose
         (as OceanWATERS' joint-space pre-configurations), else through the unstowed "safe"
-        configuration (the paper's reason for having one), else RRT*."""
+        configuration (the paper's reason for having one), else RRT*. The path may end a whole
+        turn of the hand or scoop yaw away from ``goal`` (the same pose): continue from its
+        last row."""
         planner = self.planner
-        if planner.first_invalid(np.vstack([start, goal]), ctx) is not None:
-            safe = np.array([UNSTOWED[j] for j in ARM_JOINTS])
+        # The hand and scoop yaw turn a full turn either way: the goal as solved (near the
+        # operation's reference turn) or the same pose a whole turn nearer to where the joints
+        # are now (after an earlier operation left the wrist a turn away).
+        goals = [goal]
+        near = planner.unwrap(goal, start)
+        if not np.allclose(near, goal):
+            goals.append(near)
+        safe = np.array([UNSTOWED[j] for j in ARM_JOINTS])
+        for end in goals:
+            if planner.first_invalid(np.vstack([start, end]), ctx) is None:
+                planner.stats.direct_segments += 1
+                return np.vstack([start, end])
             for vias in ([reference], [safe, reference], [safe]):
-                path = np.vstack([start, *vias, goal])
-                if all(planner.is_valid(v, ctx) for v in vias) and (
+                turned = [planner.unwrap(v, end) for v in vias]
+                path = np.vstack([start, *turned, end])
+                if all(planner.is_valid(v, ctx) for v in turned) and (
                     planner.first_invalid(path, ctx) is None
                 ):
                     planner.stats.direct_segments += len(vias) + 1
@@ -416,7 +429,9 @@ class Operations:
         dig = self._ctx(q, terrain, SCOOP_LINK)
         end = target - normal * float(p["search_distance"])
         # The search goes as deep as the arm can without the rest of it touching the terrain.
-        descent = self._cartesian(goal, SCOOP_TIP_FRAME, end, lambda _: R0, dig, partial=True)
+        descent = self._cartesian(
+            approach[-1], SCOOP_TIP_FRAME, end, lambda _: R0, dig, partial=True
+        )
         segments = [PathSegment("approach", approach), PathSegment("guarded", descent)]
         return OperationPlan("guarded_move", segments, p)
 
@@ -457,7 +472,7 @@ class Operations:
         dig = self._ctx(q, terrain, GRINDER_LINK)
         goal = self.planner.solve_ik(GRINDER_TIP_FRAME, above, R0, reference, ctx)
         segments = [PathSegment("approach", self._approach(start, goal, reference, ctx))]
-        arm = goal
+        arm = segments[0].waypoints[-1]
         labels = ("descend", "pass_1", "shift", "pass_2")
         for label, corner in zip(labels, corners, strict=True):
             path = self._cartesian(arm, GRINDER_TIP_FRAME, corner, vertical, dig)
@@ -527,7 +542,7 @@ class Operations:
         dig = self._ctx(q, terrain, SCOOP_LINK)
         goal = self.planner.solve_ik(SCOOP_TIP_FRAME, above, R0, reference, ctx)
         segments = [PathSegment("approach", self._approach(start, goal, reference, ctx))]
-        arm = goal
+        arm = segments[0].waypoints[-1]
         steps = (
             ("lower", entry, ctx),
             ("dip_in", cut_start, dig),
@@ -586,6 +601,7 @@ class Operations:
             msg = f"cannot place the sweep's lowest point at ({x:.3f}, {y:.3f}, {target[2]:.3f}) m"
             raise PlanningError(msg)
         approach = self._approach(start, arm, reference_aimed, ctx)
+        arm = approach[-1]
         end = arm.copy()
         end[joint] += sweep[-1]
         swept = self.planner.plan_joint_sweep(arm, end, dig)

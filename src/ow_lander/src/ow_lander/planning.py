@@ -15,6 +15,7 @@ is not used: it ignores the robot's dynamics and reduces to path length.
 from __future__ import annotations
 
 import itertools
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -237,22 +238,22 @@ class ArmPlanner:
         if staged is not None:
             self.stats.direct_segments += 2
             return staged
-        resolutions = (self.config.rrt_check_resolution_rad, self.config.joint_resolution_rad)
-        for resolution in resolutions:
-            for attempt in range(self.config.rrt_attempts):
-                path = self._rrt_star(
-                    start, goal, ctx, self.config.seed + attempt, resolution, objective
-                )
-                if path is None:
-                    continue
-                path = self._shortcut(path, ctx, objective)
-                if self.first_invalid(path, ctx) is None:
-                    self.stats.rrt_segments += 1
-                    return path
+        for attempt in range(self.config.rrt_attempts):
+            path = self._rrt_star(
+                start, goal, ctx, self.config.seed + attempt, self.config.rrt_check_resolution_rad,
+                objective,
+            )  # fmt: skip
+            if path is None:
+                continue
+            path = self._shortcut(path, ctx, objective)
+            if self.first_invalid(path, ctx) is None:
+                self.stats.rrt_segments += 1
+                return path
         if self.config.connect_time_limit_s > 0:
             path = self._rrt_star(
-                start, goal, ctx, self.config.seed, resolutions[-1], objective, connect=True
-            )
+                start, goal, ctx, self.config.seed, self.config.joint_resolution_rad, objective,
+                connect=True,
+            )  # fmt: skip
             if path is not None:
                 path = self._shortcut(path, ctx, objective)
                 if self.first_invalid(path, ctx) is None:
@@ -346,11 +347,27 @@ class ArmPlanner:
         planner.setProblemDefinition(pdef)
         planner.setup()
         iterations = 0
+        solved_at: int | None = None
+        improve = self.config.rrt_improve_iterations
         deadline = time.monotonic() + time_limit
 
         def stop() -> bool:
-            nonlocal iterations
+            # Ends on iteration counts (reproducible whatever the load): the cap, or
+            # ``rrt_improve_iterations`` after the first exact solution; the clock only as a
+            # safety net. (The cost threshold ends RRT* from inside.)
+            nonlocal iterations, solved_at
             iterations += 1
+            # RRT* keeps its best solution to itself until the end; a finite best cost means it
+            # has one (checked every 10 iterations: the call is not free).
+            if (
+                solved_at is None
+                and not connect
+                and iterations % 10 == 0
+                and math.isfinite(planner.bestCost().value())
+            ):
+                solved_at = iterations
+            if solved_at is not None and iterations > solved_at + improve:
+                return True
             return iterations > cap or time.monotonic() > deadline
 
         status = planner.solve(ob.PlannerTerminationCondition(stop))

@@ -122,6 +122,27 @@ class Trajectory:
             return None
         return float(self.times[rows[0]]), float(self.times[rows[-1]])
 
+    def steady_span(self, label: str, ramp_step: float = 0.02) -> tuple[float, float] | None:
+        """(first, last) time (s) of the cruise of segment ``label``: after its acceleration
+        ramp, before its braking ramp, where the paper's guarded descent is steady. A ramp is
+        a run of rows whose joint speed (norm of the velocity row) changes by more than
+        ``ramp_step`` times the segment's top speed from one row to the next (along a Cartesian
+        line the speed drifts slowly, on a ramp it changes by a * dt per row); rows at rest
+        before the ramp (a settle pause) are skipped. None if the segment is absent."""
+        rows = np.array([i for i, s in enumerate(self.segments) if s == label], dtype=np.intp)
+        if len(rows) == 0:
+            return None
+        speed = np.linalg.norm(self.velocities[rows], axis=1)
+        step = ramp_step * float(speed.max())
+        first, last = 0, len(rows) - 1
+        while first < last and speed[first + 1] <= step:  # at rest (e.g. a settle pause)
+            first += 1
+        while first < last and speed[first + 1] - speed[first] > step:
+            first += 1
+        while last > first and speed[last - 1] - speed[last] > step:
+            last -= 1
+        return float(self.times[rows[first]]), float(self.times[rows[last]])
+
 
 def _split_at_corners(points: FloatArray, scale: FloatArray) -> list[FloatArray]:
     """Split a polyline where its direction (in velocity-normalised joint space) turns sharply."""

@@ -143,7 +143,11 @@ class SimConfig:
         terrain_png_height_range: (z at pixel 0, z at pixel 65535) m for 16-bit PNG files.
         terrain_material: material id reported to terrain-force models.
         terrain_yield_force: N, total normal contact force above which a tool carves the terrain.
-        carve_step: m, how far below the tool a yielding cell is lowered in one carve update.
+        carve_step: m, how far below the tool a yielding cell is lowered in one carve update when
+            the tool presses with ``carve_full_force`` or more (less in proportion to the force
+            above ``terrain_yield_force``: a viscoplastic terrain).
+        carve_full_force: N, normal force at which the terrain yields at the full ``carve_step``
+            (must exceed ``terrain_yield_force``).
         carve_period: s of sim time between carve updates (and Bullet terrain refreshes).
         terrain_forces: terrain-force model name for ``ow_dem_bridge.models.make_model``, or "none".
         terrain_force_params: parameters passed to that factory.
@@ -168,6 +172,7 @@ class SimConfig:
     terrain_material: int = 1
     terrain_yield_force: float = 10.0
     carve_step: float = 0.003
+    carve_full_force: float = 40.0
     carve_period: float = 0.05
     terrain_forces: str = "none"
     terrain_force_params: Mapping[str, Any] = field(default_factory=dict)
@@ -220,6 +225,7 @@ class SimConfig:
             "real_time_factor",
             "terrain_yield_force",
             "carve_step",
+            "carve_full_force",
             "terrain_publish_period",
         ):
             if key in raw:
@@ -257,6 +263,11 @@ class SimConfig:
             kwargs["gains"] = _gains(raw["gains"], defaults.gains)
         if "initial_positions" in raw:
             kwargs["initial_positions"] = _initial(raw["initial_positions"], defaults)
+        yield_force = kwargs.get("terrain_yield_force", defaults.terrain_yield_force)
+        full_force = kwargs.get("carve_full_force", defaults.carve_full_force)
+        if full_force <= yield_force:
+            msg = f"carve_full_force={full_force} N must exceed terrain_yield_force={yield_force} N"
+            raise ConfigError(msg)
         png_low, png_high = kwargs.get(
             "terrain_png_height_range", defaults.terrain_png_height_range
         )

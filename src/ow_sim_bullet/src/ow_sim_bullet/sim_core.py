@@ -74,6 +74,9 @@ _CORNERS = np.array([(0, 0), (0, 1), (1, 0), (1, 1)])
 #: m, depth below the surface at which a tool that does not press removes material anyway.
 _EMBEDDED_DEPTH = 0.01
 
+#: link whose joint (j_dist_pitch) carries the wrist force/torque sensor.
+WRIST_FT_LINK = "l_dist"
+
 #: tool name -> (link, tip frame)
 TOOLS: dict[str, tuple[str, str]] = {
     "scoop": (SCOOP_LINK, SCOOP_TIP_FRAME),
@@ -691,8 +694,9 @@ class BulletSim:
                 track.moment_sum += _cross_rows(contacts[:, 0:3], contacts[:, 3:6]).sum(axis=0)
 
     def _carve(self) -> None:
-        """Lower the terrain wherever a tool is below it, and by ``carve_step`` under a tool that
-        presses on it with more than the yield force (a rigid-plastic terrain)."""
+        """Lower the terrain wherever a tool is below it, and under a tool that presses on it with
+        more than the yield force by up to ``carve_step`` (in proportion to the force above the
+        yield force, full at ``carve_full_force``: a viscoplastic terrain)."""
         hm = self._heightmap
         rows, cols = self._heights.shape
         changed_rows: list[int] = []
@@ -713,8 +717,13 @@ class BulletSim:
             row = np.floor((points[:, 1] - hm.origin_y) / hm.resolution).astype(np.intp)
             inside = (row >= 0) & (row < rows - 1) & (col >= 0) & (col < cols - 1)
             z = points[:, 2]
-            if track.last_normal_force > self.config.terrain_yield_force:
-                target, slack = z - self.config.carve_step, 0.0
+            excess = track.last_normal_force - self.config.terrain_yield_force
+            if excess > 0.0:
+                # Viscoplastic: the harder the tool presses, the faster the terrain yields (a
+                # tool resting just above the yield force does not sink at full speed).
+                full = self.config.carve_full_force - self.config.terrain_yield_force
+                step = self.config.carve_step * min(excess / full, 1.0)
+                target, slack = z - step, 0.0
             else:
                 # Not pressing: only material a tool is well inside (e.g. after a terrain change)
                 # is removed; Bullet's own contact penetration must not make the tool creep down.
@@ -935,6 +944,24 @@ class BulletSim:
             force=rotation_t @ force_world,
             torque=rotation_t @ moment_world,
         )
+
+    def wrist_wrench(self, snapshots: Mapping[str, ToolSnapshot]) -> tuple[FloatArray, FloatArray]:
+        """The force/torque sensor at ``j_dist_pitch`` (later OceanWATERS), tared: the external
+        wrench on everything beyond the joint (the tools' snapshots), force N and torque N m
+        about the joint's origin, in the ``l_dist`` frame. Gravity and inertia of the distal
+        links are not in it (as a sensor zeroed at rest)."""
+        self._frames(self.sample.position)
+        X_dist = self._pin_data.oMf[self._frame_id[WRIST_FT_LINK]]
+        origin = np.asarray(X_dist.translation)
+        force = np.zeros(3)
+        torque = np.zeros(3)
+        for snapshot in snapshots.values():
+            R = snapshot.X_base_link[:3, :3]
+            f = R @ snapshot.force
+            force += f
+            torque += R @ snapshot.torque + _cross(snapshot.X_base_link[:3, 3] - origin, f)
+        R_dist_t = np.asarray(X_dist.rotation).T
+        return R_dist_t @ force, R_dist_t @ torque
 
     def gravity_torque(self, q: FloatArray) -> FloatArray:
         """N m, gravity torques (our joint order) at positions q (rad), from pinocchio."""

@@ -38,7 +38,7 @@ from ow_msgs.srv import (
 from ow_sim_bullet import conversions, wire
 from ow_sim_bullet.config import CONTROLLER_NAMES, PidGains, SimConfig
 from ow_sim_bullet.errors import CommandError, SimError
-from ow_sim_bullet.sim_core import TOOLS, BulletSim, ToolSnapshot, make_force_model
+from ow_sim_bullet.sim_core import TOOLS, WRIST_FT_LINK, BulletSim, ToolSnapshot, make_force_model
 from ow_sim_bullet.terrains import parse_terrain_spec
 from ow_sim_bullet.trajectory import JointTrajectory
 
@@ -139,6 +139,10 @@ class SimNode:
         /sim/scoop_wrench, /sim/grinder_wrench (geometry_msgs/WrenchStamped): mean contact and
             terrain-model force N and torque N m on the tool since the previous message, in the
             tool link frame about its origin, at ``~wrench_rate_hz``.
+        /arm_end_effector_force_torque (geometry_msgs/WrenchStamped): the wrist force/torque
+            sensor of later OceanWATERS at j_dist_pitch, tared (gravity of the distal links not
+            included): the tools' external wrench, N and N m about the joint, in l_dist, at
+            ``~wrench_rate_hz``.
         /sim/scoop_tip_ground (geometry_msgs/PointStamped): base_link x, y of l_scoop_tip and
             z = true terrain height there (m), at ``~wrench_rate_hz``.
         /sim/scoop_state, /sim/grinder_state (ow_msgs/ToolState): at ``~tool_state_rate_hz``.
@@ -200,6 +204,8 @@ class SimNode:
             tool: _WirePublisher(f"~{tool}_wrench", WrenchStamped) for tool in TOOLS
         }
         self._tip_ground_pub = _WirePublisher("~scoop_tip_ground", PointStamped)
+        self._wrist_pub = _WirePublisher("/arm_end_effector_force_torque", WrenchStamped)
+        self._wrist_wire = wire.StampedWire(WRIST_FT_LINK)
         #: in the order their queued messages are written: /clock first.
         self._wire_pubs = [
             self._clock_pub,
@@ -208,6 +214,7 @@ class SimNode:
             self._tf_pub,
             *self._wrench_pubs.values(),
             self._tip_ground_pub,
+            self._wrist_pub,
         ]
         self._unflushed_steps = 0
         with warnings.catch_warnings():
@@ -486,6 +493,8 @@ class SimNode:
                 publisher.publish(
                     self._tool_wire[tool].wrench, snapshot.time, snapshot.force, snapshot.torque
                 )
+            wrist_force, wrist_torque = sim.wrist_wrench(self._snapshots)
+            self._wrist_pub.publish(self._wrist_wire.wrench, t, wrist_force, wrist_torque)
             scoop = self._snapshots["scoop"]
             self._tip_ground_pub.publish(
                 self._base_wire.point,
