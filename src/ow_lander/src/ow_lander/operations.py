@@ -378,12 +378,47 @@ class Operations:
         here = self._position(arm, q, frame)
         rotation = self._rotation(arm, q, frame)
         target = here + np.array([0.0, 0.0, penetration + LIFT_OFF_CLEARANCE])
-        path = self._cartesian(arm, frame, target, lambda _: rotation, ctx)
+        try:
+            path = self._cartesian(arm, frame, target, lambda _: rotation, ctx)
+        except PlanningError as error:
+            # E.g. after an execution stopped half-way the wrist may be folded so that a
+            # straight lift makes the hand touch the distal link: raise the whole arm with the
+            # shoulder pitch instead.
+            path = self._shoulder_lift(arm, q, frame, target[2], ctx, error)
         if not self.planner.is_valid(path[-1], self._ctx(q, terrain)):
             end = self.planner.explain(path[-1], self._ctx(q, terrain))
             msg = f"lifting {near.terrain_link} off the terrain did not free the arm: {end}"
             raise PlanningError(msg)
         return path
+
+    def _shoulder_lift(
+        self,
+        arm: FloatArray,
+        q: FloatArray,
+        frame: str,
+        height: float,
+        ctx: CheckContext,
+        cartesian_error: PlanningError,
+    ) -> FloatArray:
+        """(n, 6) rad: the shoulder pitch alone turned (the way that raises ``frame``) until
+        ``frame`` is at ``height`` m, every state valid in ``ctx``."""
+        pitch = ARM_JOINTS.index("j_shou_pitch")
+        lower, upper = self.planner.lower[pitch], self.planner.upper[pitch]
+        for sign in (1.0, -1.0):
+            path = [arm]
+            current = arm.copy()
+            while lower <= current[pitch] + sign * 0.01 <= upper:
+                current = current.copy()
+                current[pitch] += sign * 0.01
+                if not self.planner.is_valid(current, ctx):
+                    break
+                path.append(current)
+                if self._position(current, q, frame)[2] >= height:
+                    return np.array(path)
+                if self._position(current, q, frame)[2] < self._position(arm, q, frame)[2]:
+                    break  # this way lowers the tool
+        msg = f"cannot lift the tool off the terrain: {cartesian_error}; nor with the shoulder"
+        raise PlanningError(msg)
 
     def plan_unstow(self, q: FloatArray, terrain: HeightMap | None) -> OperationPlan:
         """Free-space motion to the unstowed ("safe") configuration."""

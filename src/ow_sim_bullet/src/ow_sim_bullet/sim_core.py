@@ -696,13 +696,14 @@ class BulletSim:
     def _carve(self) -> None:
         """Lower the terrain wherever a tool is below it, and under a tool that presses on it with
         more than the yield force by up to ``carve_step`` (in proportion to the force above the
-        yield force, full at ``carve_full_force``: a viscoplastic terrain)."""
+        yield force, full at ``carve_full_force``: a viscoplastic terrain). The grinder, a
+        powered cutter, removes what it touches by ``carve_step`` at any force."""
         hm = self._heightmap
         rows, cols = self._heights.shape
         changed_rows: list[int] = []
         changed_cols: list[int] = []
         floor = self._terrain.floor + 1e-3
-        for track in self._tools.values():
+        for tool, track in self._tools.items():
             low, high = pb.getAABB(self.robot, track.link_index, physicsClientId=self.client)
             c0 = max(int((low[0] - hm.origin_x) / hm.resolution), 0)
             c1 = min(int((high[0] - hm.origin_x) / hm.resolution) + 2, cols)
@@ -718,7 +719,11 @@ class BulletSim:
             inside = (row >= 0) & (row < rows - 1) & (col >= 0) & (col < cols - 1)
             z = points[:, 2]
             excess = track.last_normal_force - self.config.terrain_yield_force
-            if excess > 0.0:
+            if tool == "grinder" and track.last_normal_force > 0.0:
+                # The grinder is a powered cutter: it removes what it touches at the full rate
+                # (OceanWATERS lowers the terrain under it whatever the force).
+                target, slack = z - self.config.carve_step, 0.0
+            elif excess > 0.0:
                 # Viscoplastic: the harder the tool presses, the faster the terrain yields (a
                 # tool resting just above the yield force does not sink at full speed).
                 full = self.config.carve_full_force - self.config.terrain_yield_force
