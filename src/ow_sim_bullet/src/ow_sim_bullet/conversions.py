@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import genpy
 import numpy as np
-from geometry_msgs.msg import TransformStamped
+from geometry_msgs.msg import TransformStamped, WrenchStamped
 
 from ow_lander.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
@@ -172,6 +172,27 @@ def tool_state_msg(snapshot: ToolSnapshot) -> ToolStateMsg:
     msg.depth = snapshot.depth
     msg.progress = snapshot.progress
     msg.material = snapshot.material
+    return msg
+
+
+def model_state_msg(snapshot: ToolSnapshot) -> ToolStateMsg:
+    """ow_msgs/ToolState of the state the terrain-force model was given in a tool snapshot's step
+    (its depth, not the depth measured after the step; depth 0 when no model ran)."""
+    msg = tool_state_msg(snapshot)
+    msg.depth = snapshot.model_depth
+    return msg
+
+
+def model_wrench_msg(snapshot: ToolSnapshot) -> WrenchStamped:
+    """geometry_msgs/WrenchStamped of the terrain-force model's wrench in a tool snapshot (tool
+    link frame, about the link COM; zero when no model ran)."""
+    msg = WrenchStamped()
+    msg.header.stamp = stamp(snapshot.time)
+    msg.header.frame_id = snapshot.link
+    if snapshot.model_wrench is not None:
+        f, t = msg.wrench.force, msg.wrench.torque
+        f.x, f.y, f.z = (float(v) for v in snapshot.model_wrench.force)
+        t.x, t.y, t.z = (float(v) for v in snapshot.model_wrench.torque)
     return msg
 
 

@@ -308,6 +308,11 @@ class ToolSnapshot:
         force: (3,) N, mean contact + terrain-model force on the tool since the last snapshot,
             in the tool link frame.
         torque: (3,) N m, the matching torque about the tool link origin, in the tool link frame.
+        model_wrench: the terrain-force model's wrench applied in the step of this sample (tool
+            link frame, about the link COM), for ``model_depth`` and ``progress``; None when no
+            model ran for the tool (no model, or the tool above the surface).
+        model_depth: m, the depth the model was given in that step. ``depth`` is measured after
+            the step and can differ from it when the step carved the terrain ahead of the tip.
     """
 
     tool: str
@@ -323,6 +328,8 @@ class ToolSnapshot:
     material: int
     force: FloatArray
     torque: FloatArray
+    model_wrench: Wrench | None = None
+    model_depth: float = 0.0
 
 
 def make_force_model(name: str, params: Mapping[str, Any]) -> TerrainForceModel | None:
@@ -948,6 +955,10 @@ class BulletSim:
             material=self.config.terrain_material,
             force=rotation_t @ force_world,
             torque=rotation_t @ moment_world,
+            model_wrench=track.model_wrench,
+            model_depth=track.state.depth
+            if track.model_wrench is not None and track.state is not None
+            else 0.0,
         )
 
     def wrist_wrench(self, snapshots: Mapping[str, ToolSnapshot]) -> tuple[FloatArray, FloatArray]:

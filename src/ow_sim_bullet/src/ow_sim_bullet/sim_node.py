@@ -146,6 +146,14 @@ class SimNode:
         /sim/scoop_tip_ground (geometry_msgs/PointStamped): base_link x, y of l_scoop_tip and
             z = true terrain height there (m), at ``~wrench_rate_hz``.
         /sim/scoop_state, /sim/grinder_state (ow_msgs/ToolState): at ``~tool_state_rate_hz``.
+        /sim/scoop_model_state, /sim/grinder_model_state (ow_msgs/ToolState): with each tool
+            state (same stamp), the state the terrain-force model was given in that step (the
+            tool state's depth is measured after the step and differs when it carved the
+            terrain ahead of the tip); depth 0 when no model ran.
+        /sim/scoop_model_wrench, /sim/grinder_model_wrench (geometry_msgs/WrenchStamped): same
+            stamp, the model's wrench applied in that step for that state: N and N m in the tool
+            link frame about the link COM; zero when no model ran (no model, or tool above the
+            surface).
         /sim/terrain (ow_msgs/HeightMap, latched): the terrain; republished after carving at
             most every ``~terrain_publish_period`` s of wall time.
 
@@ -221,6 +229,14 @@ class SimNode:
             warnings.simplefilter("ignore", SyntaxWarning)
             self._tool_pubs = {
                 tool: rospy.Publisher(f"~{tool}_state", ToolStateMsg, queue_size=None)
+                for tool in TOOLS
+            }
+            self._model_state_pubs = {
+                tool: rospy.Publisher(f"~{tool}_model_state", ToolStateMsg, queue_size=None)
+                for tool in TOOLS
+            }
+            self._model_wrench_pubs = {
+                tool: rospy.Publisher(f"~{tool}_model_wrench", WrenchStamped, queue_size=None)
                 for tool in TOOLS
             }
         self._terrain_pub = rospy.Publisher("~terrain", HeightMapMsg, queue_size=1, latch=True)
@@ -507,6 +523,12 @@ class SimNode:
             for tool, publisher in self._tool_pubs.items():
                 if tool in self._snapshots and publisher.get_num_connections():
                     publisher.publish(conversions.tool_state_msg(self._snapshots[tool]))
+            for tool, publisher in self._model_state_pubs.items():
+                if tool in self._snapshots and publisher.get_num_connections():
+                    publisher.publish(conversions.model_state_msg(self._snapshots[tool]))
+            for tool, publisher in self._model_wrench_pubs.items():
+                if tool in self._snapshots and publisher.get_num_connections():
+                    publisher.publish(conversions.model_wrench_msg(self._snapshots[tool]))
         self._publish_terrain_if_due()
 
     def _advance(self) -> None:
