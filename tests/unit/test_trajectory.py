@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from ow_lander.errors import TrajectoryError
-from ow_lander.ground_detection import GroundDetector
+from ow_lander.ground_detection import ForceDetector, GroundDetector
 from ow_lander.trajectory import PathSegment, TrajectoryStore, read_csv, time_parameterize
 
 JOINTS = ("a", "b")
@@ -162,3 +162,17 @@ def test_a_threshold_from_the_steady_descent_sees_ground_that_gives():
     # (why the node arms the detector on Trajectory.steady_span).
     ramp = [0.026 * k / 8 for k in range(1, 8)]
     assert _descent(GroundDetector(), ramp + steady) is None
+
+
+def test_force_detector_fires_on_a_rise_over_the_tare():
+    detector = ForceDetector(threshold=10.0)
+    tare = np.array([0.5, -0.2, 1.0])  # what the sensor read when the descent became steady
+    for k in range(10):
+        assert not detector.update(
+            tare + np.array([0.0, 0.0, 0.9 * k]), np.array([1.7, 0.0, -0.1 - k])
+        )
+    assert detector.update(tare + np.array([0.0, 0.0, 10.0]), np.array([1.7, 0.0, -0.155]))
+    assert detector.contact[2] == pytest.approx(-0.155)
+    # Once found it stays found, whatever follows.
+    assert detector.update(tare, np.array([0.0, 0.0, 0.0]))
+    assert detector.contact[2] == pytest.approx(-0.155)

@@ -197,7 +197,9 @@ class ArmServicesNode:
             self._joints.update(values)
             self._joint_stamp = msg.header.stamp.to_sec()
             guard = self._guard
-            if guard is not None and guard.contact_time is None:
+            if guard is not None and (
+                guard.contact_time is None or self._joint_stamp <= guard.contact_time
+            ):
                 guard.joints.append((self._joint_stamp, dict(self._joints)))
             self._state_changed.notify_all()
 
@@ -427,13 +429,10 @@ class ArmServicesNode:
         t = msg.header.stamp.to_sec()
         if not guard.start <= t <= guard.end:
             return
-        try:  # the latest tip position (tf comes at its own rate)
-            tip = self._tf.lookup_transform_core(BASE_FRAME, SCOOP_TIP_FRAME, rospy.Time(0))
-        except tf2_ros.TransformException:
-            return
-        p = tip.transform.translation
         f = msg.wrench.force
-        if guard.force_detector.update(np.array([f.x, f.y, f.z]), np.array([p.x, p.y, p.z])):
+        # The tip position at contact is filled in from the joint states of that stamp (see
+        # _monitor); tf at 30 Hz may lag the 50 Hz wrench by more than the tolerance.
+        if guard.force_detector.update(np.array([f.x, f.y, f.z]), np.full(3, np.nan)):
             guard.contact_time = t
             with self._state_changed:
                 self._state_changed.notify_all()
@@ -515,8 +514,24 @@ class ArmServicesNode:
                 # The simulation may have run on for a while (it runs many times faster than
                 # real time): go back to where the arm was at contact, not further into the
                 # ground it yields.
+                contact_time = guard.contact_time
+
+                def caught_up(until: float = contact_time) -> bool:
+                    return self._joint_stamp >= until
+
+                with self._state_changed:  # the joint states up to the contact
+                    self._state_changed.wait_for(caught_up, timeout=1.0)
                 at_contact = guard.joints_at_contact()
-                self._hold(q[idx] if at_contact is None else self.model.q_from(at_contact)[idx])
+                if at_contact is not None:
+                    q_contact = self.model.q_from(at_contact)
+                    if guard.kind == "force":
+                        # Where the tip was at the force reading's stamp (tf may lag it).
+                        guard.force_detector.contact = self.model.position(
+                            q_contact, SCOOP_TIP_FRAME
+                        )
+                    self._hold(q_contact[idx])
+                else:
+                    self._hold(q[idx])
                 return ExecutionResult(True, "ground found", t)
             if cfg.interface == "position_controllers" and stamp >= next_command:
                 setpoint = trajectory.sample(max(t + 1.0 / cfg.command_rate_hz, 0.0))

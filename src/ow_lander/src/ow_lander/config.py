@@ -66,7 +66,7 @@ class PlannerConfig:
     rrt_time_limit_s: float = 5.0
     rrt_cost_threshold_factor: float = 1.5
     rrt_attempts: int = 1
-    connect_time_limit_s: float = 2.0
+    connect_time_limit_s: float = 5.0
     seed: int = 42
     path_length_weight: float = 0.05
     ik_restarts: int = 40

@@ -269,14 +269,22 @@ class ArmPlanner:
 
     def _staged(self, start: FloatArray, goal: FloatArray, ctx: CheckContext) -> FloatArray | None:
         """Two straight joint moves, as an operator would: the wrist (distal pitch, hand and
-        scoop yaw) first and then the shoulder and proximal joints, or the other way round.
-        The cheaper valid one, or None."""
-        wrist = slice(3, 6)
+        scoop yaw) first and then the shoulder and proximal joints, or the other way round;
+        failing those, the same with the two yaws alone as the wrist. The cheaper valid one,
+        or None."""
         candidates = []
-        for first in (np.r_[start[:3], goal[wrist]], np.r_[goal[:3], start[wrist]]):
-            path = np.vstack([start, first, goal])
-            if self.is_valid(first, ctx) and self.first_invalid(path, ctx) is None:
-                candidates.append(path)
+        # Split after the proximal pitch (wrist = distal pitch, hand and scoop yaw), or after
+        # the distal pitch (the two yaws alone: turning the hand where the elbow is open).
+        for split in (3, 4):
+            for first in (
+                np.r_[start[:split], goal[split:]],
+                np.r_[goal[:split], start[split:]],
+            ):
+                path = np.vstack([start, first, goal])
+                if self.is_valid(first, ctx) and self.first_invalid(path, ctx) is None:
+                    candidates.append(path)
+            if candidates:
+                break
         if not candidates:
             return None
         return min(candidates, key=lambda path: self.cost(path, ctx.base, OBJECTIVE_STEP_RAD))

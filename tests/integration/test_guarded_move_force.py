@@ -1,0 +1,57 @@
+"""Guarded move with the force detector (``execution/ground_detector: force``): contact when the
+wrist force/torque sensor the simulation publishes at j_dist_pitch rises over its threshold."""
+
+import pytest
+import rospy
+from geometry_msgs.msg import WrenchStamped
+
+from ow_msgs.srv import GuardedMove, Unstow
+
+GROUND = -0.155
+
+
+@pytest.fixture(scope="module")
+def stack(ros_stack):
+    ros_stack.start_node(
+        "ow_sim_bullet",
+        "sim",
+        params={"terrain": f"flat:{GROUND}", "real_time_factor": 0.0},
+        wait_for_topics=["/arm_end_effector_force_torque"],
+    )
+    ros_stack.start_node(
+        "ow_lander",
+        "arm_services",
+        params={"plan_and_execute": True, "execution": {"ground_detector": "force"}},
+        wait_for_services=["/arm/guarded_move"],
+    )
+    response = ros_stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
+    assert response.success, response.message
+    return ros_stack
+
+
+def test_wrist_sensor_reads_zero_in_free_space(stack):
+    msg = rospy.wait_for_message("/arm_end_effector_force_torque", WrenchStamped, timeout=10)
+    assert msg.header.frame_id == "l_dist"
+    force = msg.wrench.force
+    assert abs(force.x) + abs(force.y) + abs(force.z) < 1e-6
+
+
+def test_force_detector_finds_the_ground(stack):
+    forces = []
+    sub = rospy.Subscriber(
+        "/arm_end_effector_force_torque",
+        WrenchStamped,
+        lambda m: forces.append(m.wrench.force.x**2 + m.wrench.force.y**2 + m.wrench.force.z**2),
+    )
+    try:
+        response = stack.service("/arm/guarded_move", GuardedMove)(
+            use_defaults=False, x=1.7, y=0.0, z=GROUND + 0.2, direction_x=0.0, direction_y=0.0,
+            direction_z=1.0, search_distance=0.5,
+        )  # fmt: skip
+    finally:
+        sub.unregister()
+    assert response.success, response.message
+    assert response.ground_found
+    assert response.ground_position.z == pytest.approx(GROUND, abs=0.005)
+    # The sensor saw the contact: at least the 10 N threshold.
+    assert max(forces) ** 0.5 >= 10.0
