@@ -16,6 +16,7 @@ from __future__ import annotations
 import bisect
 import datetime as dt
 import json
+import math
 import os
 import sys
 import threading
@@ -32,6 +33,9 @@ from ow_lander.mission_config import DEFAULT_MISSION_FILE, MissionConfig
 from ow_lander.stack import HarnessError, NodeProcess, RosStack, private_master
 from ow_lander.terrain import HeightMap
 from ow_power.config import DEFAULT_RECORD_TOPICS
+
+#: s of wall time to wait for /power to catch up with the simulation clock.
+POWER_WAIT_S = 5.0
 
 #: Steps after which a render of the arm is taken.
 RENDER_AFTER = ("guarded_move", "grind", "dig_sample", "deliver_sample")
@@ -55,6 +59,7 @@ class StepResult:
         energy_wh: Wh, integral of the total power (with P0) over the step.
         peak_power_w: W, peak total power (with P0) during the step.
         ground_z: m, ground height found (guarded move only).
+        ground_position: (3,) m, contact point in base_link (guarded move only).
     """
 
     step: str
@@ -70,6 +75,7 @@ class StepResult:
     energy_wh: float = 0.0
     peak_power_w: float = 0.0
     ground_z: float | None = None
+    ground_position: tuple[float, float, float] | None = None
 
     @property
     def sim_time_s(self) -> float:
@@ -96,6 +102,11 @@ class MissionReport:
         return (
             not self.error and len(self.steps) == len(STEPS) and all(s.success for s in self.steps)
         )
+
+    @property
+    def failed_step(self) -> str | None:
+        """Name of the step that failed, or None."""
+        return next((s.step for s in self.steps if not s.success), None)
 
     @property
     def real_time_factor(self) -> float:
@@ -130,6 +141,7 @@ class MissionReport:
         return {
             "success": self.success,
             "error": self.error,
+            "failed_step": self.failed_step,
             "wall_time_s": self.wall_time_s,
             "sim_time_s": self.sim_time_s,
             "real_time_factor": self.real_time_factor,
@@ -246,6 +258,24 @@ class PowerTrace:
             self.mechanical_j.append(mechanical_j)
             self.energy_j.append(energy_j)
             self.total_w.append(total_w)
+
+    def last_stamp_s(self) -> float:
+        """s, stamp of the newest message (-inf before the first)."""
+        with self._lock:
+            return self.t[-1] if self.t else -math.inf
+
+    def wait_until(self, t: float, timeout_s: float) -> bool:
+        """Wait (wall time) until a message stamped at or after ``t`` s has arrived.
+
+        The subscriber runs behind the simulation: a window closed before its last messages
+        arrived would miss its end. Returns False when none came within ``timeout_s``.
+        """
+        deadline = time.monotonic() + timeout_s
+        while self.last_stamp_s() < t:
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.01)
+        return True
 
     def window(self, t0: float, t1: float) -> tuple[float, float, float]:
         """(mechanical J, total J, peak total W) between simulation times t0 and t1."""
@@ -386,6 +416,10 @@ class MissionRunner:
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=10)
         rospy.Subscriber("/sim/terrain", HeightMapMsg, self._on_terrain, queue_size=1)
         rospy.Subscriber("/power", Power, self._on_power, queue_size=1000)
+        # The first step's energy window must start inside the trace.
+        if not self.power.wait_until(0.0, POWER_WAIT_S):
+            msg = f"no /power message within {POWER_WAIT_S} s of subscribing"
+            raise HarnessError(msg)
         return nodes
 
     def _run_steps(self) -> None:
@@ -405,13 +439,19 @@ class MissionRunner:
             result.sim_start_s = self._clock
             wall0 = time.monotonic()
             try:
-                response = proxy(**fields)
+                response = _call_with_timeout(proxy, fields, c.step_timeout_s)
             except (rospy.ServiceException, TypeError) as exc:
                 result.message = f"service call failed: {exc}"
                 response = None
+            except TimeoutError:
+                result.message = (
+                    f"no answer within step_timeout_s = {c.step_timeout_s:g} s of wall time"
+                )
+                response = None
             result.wall_time_s = time.monotonic() - wall0
-            time.sleep(0.05)  # the last /power and /clock messages of the step
+            time.sleep(0.05)  # the last /clock messages of the step
             result.sim_end_s = self._clock
+            self.power.wait_until(result.sim_end_s, POWER_WAIT_S)
             if response is not None:
                 result.success = bool(response.success)
                 result.message = response.message
@@ -425,8 +465,10 @@ class MissionRunner:
                     result.success = False
                     result.message = f"no ground found: {response.message}"
                 else:
-                    ground = float(response.ground_position.z)
+                    contact = response.ground_position
+                    ground = float(contact.z)
                     result.ground_z = ground
+                    result.ground_position = (float(contact.x), float(contact.y), ground)
                     self.report.ground_z = ground
             print(
                 f"[mission] {step.name}: {'ok' if result.success else 'FAILED'} "
@@ -497,6 +539,36 @@ class MissionRunner:
         except Exception as exc:  # a plot must never cost the user the rest of the report
             return f"The power plot could not be made: {exc}"
         return ""
+
+
+def _call_with_timeout(
+    proxy: Callable[..., Any], fields: Mapping[str, Any], timeout_s: float
+) -> Any:
+    """``proxy(**fields)``, or TimeoutError after ``timeout_s`` s of wall time.
+
+    A call that times out is left running in a daemon thread; the mission then stops and shuts
+    the stack down, which ends it.
+
+    Raises:
+        TimeoutError: no answer within ``timeout_s``.
+        Exception: whatever the call raised.
+    """
+    outcome: dict[str, Any] = {}
+
+    def call() -> None:
+        try:
+            outcome["response"] = proxy(**fields)
+        except Exception as exc:  # re-raised in the caller's thread
+            outcome["error"] = exc
+
+    worker = threading.Thread(target=call, name="mission-step", daemon=True)
+    worker.start()
+    worker.join(timeout_s)
+    if worker.is_alive():
+        raise TimeoutError
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome["response"]
 
 
 def _peak_memory_mb(nodes: list[NodeProcess]) -> float:
