@@ -185,3 +185,23 @@ def test_damping_torque_is_the_urdf_damping_on_a_slow_heavy_joint(sim):
     assert abs(velocity) > 0.01
     # c = 50 N m s / rad in the URDF; the implicit form only differs by the step's velocity change.
     assert sim.sample.damping_effort[k] == pytest.approx(-50.0 * velocity, rel=0.05)
+
+
+def test_dig_progress_survives_a_moment_out_of_the_ground(sim):
+    X = pin.SE3.Identity()
+    zero = np.zeros(3)
+
+    def at(t, x, depth):
+        sim.time = t
+        return sim._track_dig("scoop", X, np.array([x, 0.0, -0.2]), zero, zero, depth)
+
+    at(0.0, 1.60, 0.03)
+    at(0.5, 1.65, 0.03)
+    # The carving ahead of the tip zeroes its depth for a moment: no state, but the cut goes on.
+    assert at(0.6, 1.66, 0.0) is None
+    assert at(0.7, 1.67, 0.02).progress == pytest.approx(0.07)
+    # Out for longer than DIG_END_GAP_S: the next dig starts from zero.
+    at(0.8, 1.70, 0.0)
+    at(2.0, 1.80, 0.0)
+    assert at(2.1, 1.81, 0.02).progress == pytest.approx(0.0)
+    assert at(2.2, 1.83, 0.02).progress == pytest.approx(0.02)

@@ -74,6 +74,10 @@ _CORNERS = np.array([(0, 0), (0, 1), (1, 0), (1, 1)])
 #: m, depth below the surface at which a tool that does not press removes material anyway.
 _EMBEDDED_DEPTH = 0.01
 
+#: s of sim time a tool tip may be out of the ground in the middle of a dig (the carving ahead
+#: of it zeroes its depth now and then) before its dig progress starts again from zero.
+DIG_END_GAP_S = 1.0
+
 #: link whose joint (j_dist_pitch) carries the wrist force/torque sensor.
 WRIST_FT_LINK = "l_dist"
 
@@ -287,6 +291,7 @@ class _ToolTrack:
     last_tip: FloatArray | None = None
     state: ToolState | None = None
     model_wrench: Wrench | None = None
+    out_since: float | None = None
 
 
 @dataclass(frozen=True)
@@ -848,12 +853,21 @@ class BulletSim:
         """Update a tool's dig progress from its kinematics and depth; its ToolState if dug in."""
         track = self._tools[tool]
         if depth > 0.0:
-            if track.last_tip is not None:
-                track.progress += float(np.linalg.norm(tip - track.last_tip))
-            track.last_tip = tip
-        else:
+            track.out_since = None
+        elif track.out_since is None:
+            track.out_since = self.time
+        if depth <= 0.0 and (track.last_tip is None or self.time - track.out_since > DIG_END_GAP_S):
+            # Out of the ground for good: the next dig starts from zero progress.
             track.progress = 0.0
             track.last_tip = None
+            track.state = None
+            return None
+        # In the ground, or out of it only for a moment (the carving ahead of the tip can zero
+        # its depth for a step or two in the middle of a cut): the cut goes on.
+        if track.last_tip is not None:
+            track.progress += float(np.linalg.norm(tip - track.last_tip))
+        track.last_tip = tip
+        if depth <= 0.0:
             track.state = None
             return None
         rotation_t = np.asarray(X_base_link.rotation).T
