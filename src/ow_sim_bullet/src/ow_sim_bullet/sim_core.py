@@ -856,7 +856,8 @@ class BulletSim:
             track.out_since = None
         elif track.out_since is None:
             track.out_since = self.time
-        if depth <= 0.0 and (track.last_tip is None or self.time - track.out_since > DIG_END_GAP_S):
+        out_for = 0.0 if track.out_since is None else self.time - track.out_since
+        if depth <= 0.0 and (track.last_tip is None or out_for > DIG_END_GAP_S):
             # Out of the ground for good: the next dig starts from zero progress.
             track.progress = 0.0
             track.last_tip = None
