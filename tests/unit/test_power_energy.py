@@ -5,6 +5,7 @@ import pinocchio as pin
 import pytest
 
 from ow_lander.description import URDF_PATH
+from ow_lander.model import EUROPA_GRAVITY, LanderModel
 from ow_power.energy import ArmEnergyModel, EnergyBalance, dissipated_work_j
 from ow_power.errors import PowerError
 
@@ -26,6 +27,7 @@ def test_inverse_dynamics_torques_balance_potential_kinetic_and_damping():
     """Torques from pinocchio's RNEA plus URDF damping, integrated like the power node does."""
     arm = ArmEnergyModel()
     model = pin.buildModelFromUrdf(str(URDF_PATH))
+    model.gravity.linear = np.array([0.0, 0.0, -EUROPA_GRAVITY])  # the simulation's gravity
     data = model.createData()
     names = [model.names[i] for i in range(1, model.njoints)]
     # A 4 s lift of the shoulder and proximal pitch joints with a smooth (min-jerk) profile.
@@ -55,6 +57,39 @@ def test_inverse_dynamics_torques_balance_potential_kinetic_and_damping():
     assert balance.kinetic_rise_j == pytest.approx(0.0, abs=1e-9)  # at rest at both ends
     assert balance.dissipated_j > 0.0
     assert balance.relative_error < 0.01
+
+
+def test_potential_energy_is_europas_like_the_simulation_and_the_lander_model():
+    """pinocchio's default gravity is the Earth's; the balance must use the simulation's."""
+    arm = ArmEnergyModel()
+    lander = LanderModel()
+    q = lander.q_from({"j_shou_pitch": 1.2, "j_prox_pitch": -0.8})
+    names = [lander.model.names[i] for i in range(1, lander.model.njoints)]
+    position = [q[lander.index(n)] for n in names]
+    assert arm.gravity == EUROPA_GRAVITY
+    assert arm.potential_energy_j(names, position) == pytest.approx(lander.potential_energy(q))
+    moon = ArmEnergyModel(gravity=1.62)
+    assert moon.potential_energy_j(names, position) == pytest.approx(
+        lander.potential_energy(q) * 1.62 / EUROPA_GRAVITY
+    )
+
+
+def test_balance_with_the_simulations_damping_torque():
+    """Losses from a recorded damping torque, -sum tau_d * w * dt: -5 N m x 0.1 rad/s for 1 s is
+    0.5 J, what the motor's 5 N m did (position held fixed: no potential or kinetic rise)."""
+    arm = ArmEnergyModel()
+    t = np.linspace(0.0, 1.0, 101)
+    velocity = np.full((t.size, 1), 0.1)
+    balance = arm.balance(
+        t, ["j_ant_pan"], np.zeros((t.size, 1)), velocity, np.full((t.size, 1), 5.0),
+        damping_effort=np.full((t.size, 1), -5.0),
+    )  # fmt: skip
+    assert balance.dissipated_j == pytest.approx(0.5)
+    assert balance.work_j == pytest.approx(0.5)
+    with pytest.raises(PowerError, match=r"damping_effort has shape \(101, 2\)"):
+        arm.balance(
+            t, ["j_ant_pan"], velocity, velocity, velocity, damping_effort=np.zeros((101, 2))
+        )
 
 
 def test_balance_needs_two_samples():

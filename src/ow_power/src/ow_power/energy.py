@@ -5,6 +5,13 @@ the joint motors did, ``W = sum_k sum_i tau_i(k) * dtheta_i(k) * dt_k``, equals 
 arm's potential and kinetic energy (pinocchio, from the URDF) plus what the joint damping and
 Coulomb friction dissipated, ``sum_k sum_i (d_i * dtheta_i(k)**2 + f_i * |dtheta_i(k)|) * dt_k``
 (plus any work done on the terrain, zero in free space).
+
+Gravity is Europa's (1.315 m/s^2, as in the simulation) unless given: pinocchio's default is the
+Earth's 9.81 m/s^2, which would overstate every potential-energy change 7.5 times. Where the
+simulation publishes the damping torque it applied (``/sim/joint_damping``), pass it as
+``damping_effort``: the losses are then ``-sum damping_effort * dtheta * dt`` exactly, rather than
+the URDF's ``d * dtheta**2`` (the simulation's implicit damper gives a smaller torque on the light
+wrist joints at speed).
 """
 
 from __future__ import annotations
@@ -82,19 +89,33 @@ class ArmEnergyModel:
 
     Joints are matched by name; joints of the URDF that a joint state does not list are held at
     their neutral position (0 rad), and joint-state names the URDF lacks are ignored.
+
+    Attributes:
+        gravity: m/s^2, magnitude of gravity along -z of ``base_link``.
+        damping: N m s/rad, viscous damping per joint name (URDF ``<dynamics damping>``).
+        friction: N m, Coulomb friction per joint name (URDF ``<dynamics friction>``).
     """
 
-    def __init__(self, urdf_path: Path | str | None = None) -> None:
+    def __init__(self, urdf_path: Path | str | None = None, gravity: float | None = None) -> None:
         """Load the model.
 
         Args:
             urdf_path: URDF file; default the lander of ``ow_lander.description``.
+            gravity: m/s^2, along -z of ``base_link``; default Europa's
+                (``ow_lander.model.EUROPA_GRAVITY``, the simulation's default).
 
         Raises:
-            PowerError: the URDF cannot be loaded.
+            PowerError: the URDF cannot be loaded, or ``gravity`` is not finite.
         """
         import pinocchio as pin  # pinocchio is heavy; only the balance needs it
 
+        if gravity is None:
+            from ow_lander.model import EUROPA_GRAVITY
+
+            gravity = EUROPA_GRAVITY
+        if not math.isfinite(gravity):
+            msg = f"gravity={gravity} m/s^2 is not a finite number"
+            raise PowerError(msg)
         if urdf_path is None:
             from ow_lander.description import URDF_PATH
 
@@ -104,6 +125,8 @@ class ArmEnergyModel:
         except (RuntimeError, ValueError) as exc:
             msg = f"cannot load URDF {urdf_path}: {exc}"
             raise PowerError(msg) from exc
+        self.gravity = float(gravity)
+        self._model.gravity.linear = np.array([0.0, 0.0, -self.gravity])
         self._data: Any = self._model.createData()
         self._pin: Any = pin
         names = list(self._model.names)[1:]
@@ -114,9 +137,7 @@ class ArmEnergyModel:
         self._idx_v = {
             n: self._model.joints[j].idx_v for n, j in zip(names, joint_ids, strict=True)
         }
-        #: N m s/rad, viscous damping per joint name (URDF ``<dynamics damping>``).
         self.damping = {n: float(self._model.damping[self._idx_v[n]]) for n in names}
-        #: N m, Coulomb friction per joint name (URDF ``<dynamics friction>``).
         self.friction = {n: float(self._model.friction[self._idx_v[n]]) for n in names}
 
     def _vectors(
@@ -163,6 +184,7 @@ class ArmEnergyModel:
         velocity: ArrayLike,
         effort: ArrayLike,
         max_dt_s: float = math.inf,
+        damping_effort: ArrayLike | None = None,
     ) -> EnergyBalance:
         """The work-energy balance of a recorded motion (e.g. from a bag's ``/joint_states``).
 
@@ -173,12 +195,15 @@ class ArmEnergyModel:
             velocity: (N, n) rad/s.
             effort: (N, n) N m, the torque the joint motor applied.
             max_dt_s: s, intervals longer than this are not integrated.
+            damping_effort: (N, n) N m, the passive damping torque the simulation applied
+                (``/sim/joint_damping``, same stamps and columns); when given, the losses are
+                ``-sum damping_effort * velocity * dt`` instead of the URDF damping and friction.
 
         Returns:
             The balance between the first and the last sample.
 
         Raises:
-            PowerError: fewer than two samples.
+            PowerError: fewer than two samples, or ``damping_effort`` of another shape.
         """
         pos = np.atleast_2d(np.asarray(position, dtype=float))
         vel = np.atleast_2d(np.asarray(velocity, dtype=float))
@@ -186,14 +211,25 @@ class ArmEnergyModel:
         if pos.shape[0] < 2:
             msg = f"an energy balance needs at least two joint states, got {pos.shape[0]}"
             raise PowerError(msg)
-        known = [i for i, n in enumerate(names) if n in self._idx_v]
-        damping = np.array([self.damping[names[i]] for i in known])
-        friction = np.array([self.friction[names[i]] for i in known])
+        if damping_effort is None:
+            known = [i for i, n in enumerate(names) if n in self._idx_v]
+            damping = np.array([self.damping[names[i]] for i in known])
+            friction = np.array([self.friction[names[i]] for i in known])
+            dissipated = dissipated_work_j(t_s, vel[:, known], damping, friction, max_dt_s)
+        else:
+            damper = np.atleast_2d(np.asarray(damping_effort, dtype=float))
+            if damper.shape != vel.shape:
+                msg = (
+                    f"damping_effort has shape {damper.shape}, the velocities {vel.shape}; "
+                    "they must come from the same stamps and joints"
+                )
+                raise PowerError(msg)
+            dissipated = -integrate_j(t_s, np.sum(damper * vel, axis=1), max_dt_s)
         return EnergyBalance(
             work_j=integrate_j(t_s, np.sum(tau * vel, axis=1), max_dt_s),
             potential_rise_j=self.potential_energy_j(names, pos[-1])
             - self.potential_energy_j(names, pos[0]),
             kinetic_rise_j=self.kinetic_energy_j(names, pos[-1], vel[-1])
             - self.kinetic_energy_j(names, pos[0], vel[0]),
-            dissipated_j=dissipated_work_j(t_s, vel[:, known], damping, friction, max_dt_s),
+            dissipated_j=dissipated,
         )

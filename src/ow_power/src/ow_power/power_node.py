@@ -13,16 +13,22 @@ from ow_power.conversions import joint_state_fields, power_message
 from ow_power.errors import ConfigError, PowerError
 from ow_power.model import PowerIntegrator
 
+#: Messages queued per topic: 10 s of joint states at the simulation's 100 Hz. Every joint state
+#: counts (a dropped one stretches the next interval of eq. 4), and a simulation running many
+#: times faster than real time outpaces a node that is briefly descheduled; rospy drops the oldest
+#: message beyond this (at 100, /power missed 0.33 s of joint states on a loaded 2-core machine).
+QUEUE_SIZE = 1000
+
 
 class PowerNode:
     """Publishes the arm's power and cumulative energy for every joint state.
 
     ROS API:
         Subscribes:
-            ``joint_states`` (sensor_msgs/JointState): position rad, velocity rad/s,
-            effort = applied torque N m; joints matched by name.
+            ``joint_states`` (sensor_msgs/JointState, queue 1000): position rad, velocity
+            rad/s, effort = applied torque N m; joints matched by name.
         Publishes:
-            ``power`` (ow_msgs/Power, queue 100): one message per usable joint state, stamped
+            ``power`` (ow_msgs/Power, queue 1000): one message per usable joint state, stamped
             with its stamp; energies accumulate from the node's start.
         Parameters (private, read once; see :class:`~ow_power.config.PowerConfig`):
             ``~auxiliary_power_w`` (float, W, default 43.0): P0.
@@ -34,9 +40,9 @@ class PowerNode:
     def __init__(self, config: PowerConfig) -> None:
         """Advertise ``power`` and subscribe to ``joint_states``."""
         self._integrator = PowerIntegrator(config)
-        self._publisher = rospy.Publisher("power", Power, queue_size=100)
+        self._publisher = rospy.Publisher("power", Power, queue_size=QUEUE_SIZE)
         self._subscriber = rospy.Subscriber(
-            "joint_states", JointState, self._on_joint_states, queue_size=100
+            "joint_states", JointState, self._on_joint_states, queue_size=QUEUE_SIZE
         )
 
     def _on_joint_states(self, msg: JointState) -> None:
