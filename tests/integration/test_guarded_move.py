@@ -7,6 +7,8 @@ code the simulation builds it with) at the reported contact point, or the carved
 simulation publishes for a trench.
 """
 
+import re
+
 import numpy as np
 import pytest
 import rospy
@@ -90,6 +92,9 @@ def test_finds_flat_ground_at_several_heights(stack, ground_z):
     assert len(found) == 1
     assert found[0].frame == "base_link"
     assert found[0].position.z == pytest.approx(response.ground_position.z, abs=1e-6)
+    # Stamped with the sim time of the contact, the time the response names.
+    contact = float(re.search(r"\(t=([0-9.]+) s sim\)", response.message).group(1))
+    assert found[0].header.stamp.to_sec() == pytest.approx(contact, abs=0.006)
 
 
 @pytest.mark.parametrize(("spec", "x", "y"), [("europa:3", 1.6, 0.1), ("europa:7", 1.65, 0.0)])

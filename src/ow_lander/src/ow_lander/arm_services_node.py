@@ -578,7 +578,7 @@ class ArmServicesNode:
                 f"ground found at z={result.ground_position[2]:.4f} m "
                 f"(t={guard.contact_time:.2f} s sim)"
             )
-            self._publish_ground(True, result.ground_position)
+            self._publish_ground(True, result.ground_position, guard.contact_time)
             return result
         base = self._current_q()
         ends = [
@@ -668,9 +668,12 @@ class ArmServicesNode:
         for joint, value in zip(ARM_JOINTS, positions, strict=True):
             self.command_pubs[joint].publish(Float64(float(value)))
 
-    def _publish_ground(self, found: bool, position: np.ndarray) -> None:
+    def _publish_ground(
+        self, found: bool, position: np.ndarray, contact_time: float | None = None
+    ) -> None:
+        """Publish the result once; stamped with the contact's sim time (now when not found)."""
         msg = GuardedMoveResult()
-        msg.header.stamp = rospy.Time.now()
+        msg.header.stamp = rospy.Time.now() if contact_time is None else rospy.Time(contact_time)
         msg.header.frame_id = BASE_FRAME
         msg.success = found
         msg.position = Point(*map(float, position))
