@@ -233,7 +233,13 @@ def _rotation_angle(R: np.ndarray) -> float:
 def test_scoop_ends_delivery_over_the_dock_tipped(mission):
     step = mission.step("deliver_sample")
     end = step["sim_end_s"]
-    states = [msg for msg, _ in _messages(mission.bags, "/joint_states", end - 1.0, end)]
+    # Bag times are when the recorder received a message (it may lag the stamps): select by
+    # stamp.
+    states = [
+        msg
+        for msg, _ in _messages(mission.bags, "/joint_states", end - 1.0, end + 10.0)
+        if msg.header.stamp.to_sec() <= end
+    ]
     assert states, f"no /joint_states in the second before {end} s"
     state = states[-1]
     assert end - state.header.stamp.to_sec() < 0.5
