@@ -432,7 +432,7 @@ class ArmServicesNode:
         f = msg.wrench.force
         # The tip position at contact is filled in from the joint states of that stamp (see
         # _monitor); tf at 30 Hz may lag the 50 Hz wrench by more than the tolerance.
-        if guard.force_detector.update(np.array([f.x, f.y, f.z]), np.full(3, np.nan)):
+        if guard.force_detector.update(np.array([f.x, f.y, f.z])):
             guard.contact_time = t
             with self._state_changed:
                 self._state_changed.notify_all()

@@ -89,19 +89,23 @@ class ForceDetector:
     def reset(self) -> None:
         """Forget the tare and any contact."""
         self.tare: FloatArray | None = None
+        self.fired = False
         self.contact: FloatArray | None = None
 
-    def update(self, force: FloatArray, position: FloatArray) -> bool:
-        """Add a force reading (3,) N with the scoop tip ``position`` (3,) m at that time.
+    def update(self, force: FloatArray, position: FloatArray | None = None) -> bool:
+        """Add a force reading (3,) N, with the scoop tip ``position`` (3,) m at that time when
+        the caller knows it (else it sets ``contact`` itself once this returns True).
 
         Returns:
-            True once contact has been detected (``contact`` holds the tip position then).
+            True once contact has been detected.
         """
-        if self.contact is not None:
+        if self.fired:
             return True
         force = np.asarray(force, dtype=np.float64)
         if self.tare is None:
             self.tare = force.copy()
         elif float(np.linalg.norm(force - self.tare)) >= self.threshold:
-            self.contact = np.asarray(position, dtype=np.float64).copy()
-        return self.contact is not None
+            self.fired = True
+            if position is not None:
+                self.contact = np.asarray(position, dtype=np.float64).copy()
+        return self.fired

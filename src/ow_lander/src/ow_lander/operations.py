@@ -404,6 +404,7 @@ class Operations:
         ``frame`` is at ``height`` m, every state valid in ``ctx``."""
         pitch = ARM_JOINTS.index("j_shou_pitch")
         lower, upper = self.planner.lower[pitch], self.planner.upper[pitch]
+        start_z = self._position(arm, q, frame)[2]
         for sign in (1.0, -1.0):
             path = [arm]
             current = arm.copy()
@@ -413,9 +414,10 @@ class Operations:
                 if not self.planner.is_valid(current, ctx):
                     break
                 path.append(current)
-                if self._position(current, q, frame)[2] >= height:
+                z = self._position(current, q, frame)[2]
+                if z >= height:
                     return np.array(path)
-                if self._position(current, q, frame)[2] < self._position(arm, q, frame)[2]:
+                if z < start_z:
                     break  # this way lowers the tool
         msg = f"cannot lift the tool off the terrain: {cartesian_error}; nor with the shoulder"
         raise PlanningError(msg)

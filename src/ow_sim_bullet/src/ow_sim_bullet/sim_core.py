@@ -981,7 +981,7 @@ class BulletSim:
         wrench on everything beyond the joint (the tools' snapshots), force N and torque N m
         about the joint's origin, in the ``l_dist`` frame. Gravity and inertia of the distal
         links are not in it (as a sensor zeroed at rest)."""
-        self._frames(self.sample.position)
+        self._sample_frames()  # already placed by the tool snapshots of this sample
         X_dist = self._pin_data.oMf[self._frame_id[WRIST_FT_LINK]]
         origin = np.asarray(X_dist.translation)
         force = np.zeros(3)
