@@ -14,12 +14,13 @@ Joint control, per joint and physics step (``dt``), the paper's effort PID posit
 
 ``v_next`` is the joint velocity at the end of the step, predicted from the full joint-space
 inertia and bias (gravity + Coriolis) of pinocchio with the effort and damping treated implicitly
-(``(M + dt C) v_next = M v + dt (p e + integral + d v_set - bias)``, ``C = diag(d + c)``). This is
-backward Euler for the dampers, stable at any step even on the light wrist and scoop links, where
-the explicit form needs 1 kHz and the URDF damping applied explicitly by Bullet diverges. At rest
-``v_next`` is 0, so the holding effort is exactly the gravity torque. Bullet gets effort +
-damping as joint torques; its own joint damping and link damping are set to zero, so the energy
-the damping dissipates in a step is exactly ``-damping * v dt`` (published separately).
+(``(M + dt C) v_next = M v + dt (p e + integral + d v_set - bias)``, ``C = diag(d + c)``, solved
+by pinocchio's articulated-body algorithm with ``dt C`` as joint armature). This is backward Euler
+for the dampers, stable at any step even on the light wrist and scoop links, where the explicit
+form needs 1 kHz and the URDF damping applied explicitly by Bullet diverges. At rest ``v_next`` is
+0, so the holding effort is exactly the gravity torque. Bullet gets effort + damping as joint
+torques; its own joint damping and link damping are set to zero, so the energy the damping
+dissipates in a step is exactly ``-damping * v dt`` (published separately).
 """
 
 from __future__ import annotations
@@ -62,6 +63,13 @@ _OTHER_GROUP = 4
 #: Coulomb friction coefficient of the tools and of the terrain (Bullet multiplies them: 0.5).
 _TOOL_FRICTION = 1.0
 _TERRAIN_FRICTION = 0.5
+#: m, Bullet's contact breaking threshold (default 0.02): how far apart a tool and the terrain
+#: still get (speculative) contact points, and how far the tools' bounding boxes are grown for the
+#: heightfield triangle query. The tools move at most a few mm per step (joint speed limits
+#: 0.2-0.4 rad/s), so 5 mm still catches every approach, with a quarter of the contact points
+#: (each costs the multibody solver a Jacobian and 50 iterations) and fewer triangles.
+#: Process-wide in Bullet: every BulletSim sets the same value.
+_CONTACT_BREAKING_THRESHOLD = 0.005
 #: m, how far ahead of a moving tool tip the terrain counts for the tool's depth.
 _DEPTH_LOOKAHEAD = 0.05
 #: m/s, tip speeds below this count as not moving (depth is taken at the tip only).
@@ -183,13 +191,6 @@ def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
     a0, a1, a2 = a.tolist()
     b0, b1, b2 = b.tolist()
     return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
-
-
-def _cross_rows(a: FloatArray, b: FloatArray) -> FloatArray:
-    """Row-wise a x b of two (n, 3) arrays, as ``np.cross`` computes it."""
-    a0, a1, a2 = a.T
-    b0, b1, b2 = b.T
-    return np.column_stack((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
 
 
 def collision_surface_points(urdf_text: str, link_name: str, spacing: float) -> FloatArray:
@@ -386,6 +387,13 @@ class BulletSim:
         self._pin_model = pin.buildModelFromXML(urdf_text)
         self._pin_model.gravity.linear = np.array([0.0, 0.0, -config.gravity])
         self._pin_data = self._pin_model.createData()
+        # The implicit step's linear solve (M + dt C) x = r is pinocchio's articulated-body
+        # algorithm on a copy of the model without gravity, at rest, with dt C as the joints'
+        # armature: then ABA returns exactly (M + dt C)^-1 r, in O(n) and for less than numpy's
+        # dense solve (plus the mass matrix) costs.
+        self._solve_model = pin.Model(self._pin_model)
+        self._solve_model.gravity.linear = np.zeros(3)
+        self._solve_data = self._solve_model.createData()
         order = sorted(
             ALL_JOINTS, key=lambda j: self._pin_model.joints[self._pin_model.getJointId(j)].idx_q
         )
@@ -414,6 +422,7 @@ class BulletSim:
             fixedTimeStep=self.dt,
             numSubSteps=0,
             deterministicOverlappingPairs=1,
+            contactBreakingThreshold=_CONTACT_BREAKING_THRESHOLD,
             physicsClientId=self.client,
         )
         with tempfile.TemporaryDirectory(prefix="ow_sim_bullet_") as directory:
@@ -470,6 +479,7 @@ class BulletSim:
             )
             for tool, (link, _) in TOOLS.items()
         }
+        self._tool_by_link = {track.link_index: track for track in self._tools.values()}
         self._frame_id = {
             name: self._pin_model.getFrameId(name)
             for name in (*self.link_index, "base_link")
@@ -575,8 +585,9 @@ class BulletSim:
         k = self.names.index(joint)
         self._kp[k], self._ki[k], self._kd[k] = gains.p, gains.i, gains.d
         self._i_clamp[k] = self._effort_limit[k] if gains.i_clamp is None else gains.i_clamp
-        #: dt * diag(d + c): the dampers' share of the implicit step matrix.
-        self._implicit_damping = self.dt * np.diag(self._kd + self._damping)
+        #: N m s/rad, d + c: the dampers treated implicitly (diagonal of C).
+        self._dampers = self._kd + self._damping
+        self._solve_model.armature = self.dt * self._dampers
 
     def _joint(self, joint: str) -> int:
         try:
@@ -598,10 +609,18 @@ class BulletSim:
         """N m, gravity + Coriolis joint torques (our order)."""
         return np.array(pin.rnea(self._pin_model, self._pin_data, q, v, self._zeros))
 
-    def _mass_matrix(self, q: FloatArray) -> FloatArray:
-        """kg m^2, joint-space inertia (our order)."""
-        # pinocchio >= 3 returns the full symmetric matrix.
-        return np.array(pin.crba(self._pin_model, self._pin_data, q))
+    def _implicit_solve(self, q: FloatArray, dampers: FloatArray, rhs: FloatArray) -> FloatArray:
+        """x with (M(q) + dt diag(dampers)) x = rhs (our order).
+
+        ``dampers`` other than the current :attr:`_dampers` are set for this solve only.
+        """
+        model = self._solve_model
+        if dampers is not self._dampers:
+            model.armature = self.dt * dampers
+        x = np.array(pin.aba(model, self._solve_data, q, self._zeros, rhs))
+        if dampers is not self._dampers:
+            model.armature = self.dt * self._dampers
+        return x
 
     def step(self) -> None:
         """Advance the simulation by one physics step of ``dt`` seconds."""
@@ -648,25 +667,23 @@ class BulletSim:
         self, q: FloatArray, v: FloatArray, v_set: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
         """Motor effort and damping torque (N m) for this step; updates the integrals."""
+        # (M + dt C) v_next = M v + dt (tau - bias) written for the acceleration a, v_next =
+        # v + dt a: (M + dt C) a = tau - bias - C v.
         dt = self.dt
         error = self._setpoint - q
         tau_pi = self._kp * error + self._integral
-        inertia = self._mass_matrix(q)
+        drive = tau_pi + self._kd * v_set
         bias = self._bias(q, v)
-        momentum = inertia @ v
-        v_next = np.linalg.solve(
-            inertia + self._implicit_damping,
-            momentum + dt * (tau_pi + self._kd * v_set - bias),
-        )
+        dampers = self._dampers
+        v_next = v + dt * self._implicit_solve(q, dampers, drive - bias - dampers * v)
         effort = tau_pi + self._kd * (v_set - v_next)
         saturated = np.abs(effort) > self._effort_limit
         if saturated.any():
+            # A saturated joint's effort is its limit, no longer a damper.
             limited = np.minimum(np.maximum(effort, -self._effort_limit), self._effort_limit)
-            free_kd = np.where(saturated, 0.0, self._kd)
-            v_next = np.linalg.solve(
-                inertia + dt * np.diag(free_kd + self._damping),
-                momentum + dt * (np.where(saturated, limited, tau_pi + self._kd * v_set) - bias),
-            )
+            dampers = np.where(saturated, 0.0, self._kd) + self._damping
+            tau = np.where(saturated, limited, drive)
+            v_next = v + dt * self._implicit_solve(q, dampers, tau - bias - dampers * v)
             effort = np.where(saturated, limited, tau_pi + self._kd * (v_set - v_next))
             effort = np.minimum(np.maximum(effort, -self._effort_limit), self._effort_limit)
         # Anti-windup: no integration while the effort is saturated in the error's direction.
@@ -680,30 +697,45 @@ class BulletSim:
         return effort, -self._damping * v_next
 
     # ------------------------------------------------------------------ tools and terrain
-    def _contacts(self, track: _ToolTrack) -> FloatArray:
-        """Contacts of a tool from the last step, (n, 7).
-
-        Columns: point on the tool (3,) m, force on the tool (3,) N, normal force N.
-        """
-        contacts = pb.getContactPoints(
-            bodyA=self.robot, linkIndexA=track.link_index, physicsClientId=self.client
-        )
-        if not contacts:
-            return np.zeros((0, 7))
-        raw = np.array([(*c[5], *c[7], c[9], c[10], *c[11], c[12], *c[13]) for c in contacts])
-        force = (
-            raw[:, 3:6] * raw[:, 6:7] + raw[:, 8:11] * raw[:, 7:8] + raw[:, 12:15] * raw[:, 11:12]
-        )
-        return np.hstack((raw[:, 0:3], force, raw[:, 6:7]))
-
     def _accumulate_contacts(self) -> None:
-        for track in self._tools.values():
-            contacts = self._contacts(track)
+        """Add the last step's contact forces on each tool to its sums (world frame, about the
+        world origin) and record its total normal force.
+
+        One ``getContactPoints`` for the whole robot (only the tools touch anything), summed in
+        plain Python: a step has a handful of contacts, too few for numpy to pay off.
+        """
+        by_link = self._tool_by_link
+        totals: dict[int, list[float]] = {}
+        for c in pb.getContactPoints(bodyA=self.robot, physicsClientId=self.client):
+            # c[3] link on the robot, c[5] point on it, c[7] normal (towards the robot), c[9]
+            # normal force, c[10]/c[11] and c[12]/c[13] the two friction forces and directions.
+            link = c[3]
+            if link not in by_link:
+                continue
+            (px, py, pz), (nx, ny, nz), fn = c[5], c[7], c[9]
+            f1, (ax, ay, az), f2, (bx, by, bz) = c[10], c[11], c[12], c[13]
+            fx = nx * fn + ax * f1 + bx * f2
+            fy = ny * fn + ay * f1 + by * f2
+            fz = nz * fn + az * f1 + bz * f2
+            sums = totals.get(link)
+            if sums is None:
+                sums = totals[link] = [0.0] * 7
+            sums[0] += fx
+            sums[1] += fy
+            sums[2] += fz
+            sums[3] += py * fz - pz * fy
+            sums[4] += pz * fx - px * fz
+            sums[5] += px * fy - py * fx
+            sums[6] += fn
+        for link, track in by_link.items():
             track.samples += 1
-            track.last_normal_force = float(contacts[:, 6].sum()) if len(contacts) else 0.0
-            if len(contacts):
-                track.force_sum += contacts[:, 3:6].sum(axis=0)
-                track.moment_sum += _cross_rows(contacts[:, 0:3], contacts[:, 3:6]).sum(axis=0)
+            sums = totals.get(link)
+            if sums is None:
+                track.last_normal_force = 0.0
+                continue
+            track.last_normal_force = sums[6]
+            track.force_sum += sums[0:3]
+            track.moment_sum += sums[3:6]
 
     def _carve(self) -> None:
         """Lower the terrain wherever a tool is below it, and under a tool that presses on it with
