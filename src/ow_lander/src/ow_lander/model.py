@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import coal
 import numpy as np
@@ -30,6 +31,14 @@ FloatArray = npt.NDArray[np.float64]
 
 #: m/s^2, surface gravity of Europa.
 EUROPA_GRAVITY = 1.315
+
+#: IK gives up on a start whose error (m + rad) fell by less than IK_STALL_GAIN (relative) over
+#: the last IK_STALL_ITERATIONS iterations: converging starts gain far more (damped least
+#: squares converges in 5-20 iterations from a start that leads to a solution).
+IK_STALL_ITERATIONS = 10
+IK_STALL_GAIN = 0.01
+
+_EYE = {3: np.eye(3), 6: np.eye(6)}
 
 #: Link pairs that never need checking: adjacent or overlapping by design (OceanWATERS SRDF).
 DISABLED_COLLISION_PAIRS: frozenset[frozenset[str]] = frozenset(
@@ -54,6 +63,10 @@ DISABLED_COLLISION_PAIRS: frozenset[frozenset[str]] = frozenset(
         ("l_ant_foot", "lander_sample_dock0"),
     )
 )
+
+#: m, side of the square blocks over which the terrain's highest point is pooled for the per-link
+#: bounding-sphere test (a link whose sphere is above the highest point under it is skipped).
+TERRAIN_BLOCK_M = 0.25
 
 #: Links of the arm that can hit the terrain, base to tool.
 ARM_LINKS: tuple[str, ...] = (
@@ -97,6 +110,17 @@ class CollisionReport:
         return "; ".join(parts) if parts else "collision-free"
 
 
+class _LinkSamples(NamedTuple):
+    """Terrain sample points of one link: ``points`` (n, 3) m and their bounding sphere
+    (``centre`` (3,) m, ``radius`` m), in the frame of ``joint``, the joint moving the link."""
+
+    link: str
+    joint: int
+    points: FloatArray
+    centre: FloatArray
+    radius: float
+
+
 def _sample_points(geometry: coal.CollisionGeometry) -> FloatArray:
     """(n, 3) m, points on a primitive's surface in its own frame, for terrain checks."""
     if isinstance(geometry, coal.Box):
@@ -117,6 +141,45 @@ def _sample_points(geometry: coal.CollisionGeometry) -> FloatArray:
         msg = f"unsupported collision geometry {type(geometry).__name__}"
         raise ModelError(msg)
     return np.asarray(local, dtype=np.float64)
+
+
+class TerrainBlocks:
+    """The highest terrain point per square block of a height map (max-pooled), for fast
+    conservative tests: no bilinear height inside a block exceeds the block's maximum.
+
+    Args:
+        terrain: the height map.
+        block: m, requested block side (rounded to whole cells).
+    """
+
+    def __init__(self, terrain: HeightMap, block: float = TERRAIN_BLOCK_M) -> None:
+        self.terrain = terrain
+        self.top = float(np.max(terrain.heights))
+        self._cells = max(1, round(block / terrain.resolution))
+        rows, cols = terrain.shape
+        k = self._cells
+        # Block (i, j) spans node rows i*k..(i+1)*k and columns j*k..(j+1)*k, both ends included:
+        # bilinear heights between cell centres are bounded by the surrounding nodes.
+        row_starts = range(0, rows - 1, k)
+        col_starts = range(0, cols - 1, k)
+        self.maxima = np.array(
+            [
+                [float(terrain.heights[r : r + k + 1, c : c + k + 1].max()) for c in col_starts]
+                for r in row_starts
+            ]
+        )
+
+    def highest(self, x: float, y: float, radius: float) -> float:
+        """m, an upper bound of the terrain height over the square of half-side ``radius`` m
+        around (x, y) m (beyond the grid the terrain continues as its edge)."""
+        terrain, k = self.terrain, self._cells
+        scale = 1.0 / (terrain.resolution * k)
+        last_r, last_c = self.maxima.shape[0] - 1, self.maxima.shape[1] - 1
+        c0 = min(max(int((x - radius - terrain.origin_x) * scale), 0), last_c)
+        c1 = min(max(int((x + radius - terrain.origin_x) * scale), 0), last_c)
+        r0 = min(max(int((y - radius - terrain.origin_y) * scale), 0), last_r)
+        r1 = min(max(int((y + radius - terrain.origin_y) * scale), 0), last_r)
+        return float(self.maxima[r0 : r1 + 1, c0 : c1 + 1].max())
 
 
 class LanderModel:
@@ -147,6 +210,7 @@ class LanderModel:
         self.upper = np.array(self.model.upperPositionLimit, dtype=np.float64)
         self.velocity_limit = np.array(self.model.velocityLimit, dtype=np.float64)
         self.effort_limit = np.array(self.model.effortLimit, dtype=np.float64)
+        self._full_turn = self.upper - self.lower >= 2 * np.pi - 1e-6
         self._geom_link = [
             self.model.frames[g.parentFrame].name for g in self.geom_model.geometryObjects
         ]
@@ -157,9 +221,10 @@ class LanderModel:
         self._broadphase = pin.BroadPhaseManager_NaiveCollisionManager(
             self.model, self.geom_model, self.geom_data
         )
-        self._terrain_top: tuple[HeightMap, float] | None = None
-        # Terrain sample points of each link, expressed in the frame of the joint that moves it.
-        self._terrain_samples: dict[str, tuple[int, FloatArray]] = {}
+        self._terrain_blocks: TerrainBlocks | None = None
+        # Terrain sample points of each link, expressed in the frame of the joint that moves it,
+        # and their bounding sphere.
+        self._terrain_samples: dict[str, _LinkSamples] = {}
         for link in set(self._geom_link):
             objects = [
                 g
@@ -172,13 +237,12 @@ class LanderModel:
                     for g in objects
                 ]
             )
-            self._terrain_samples[link] = (int(objects[0].parentJoint), points)
-        #: Bounding sphere (centre (3,) m in the joint frame, radius m) of each link's samples.
-        self._terrain_spheres: dict[str, tuple[FloatArray, float]] = {}
-        for link, (_, points) in self._terrain_samples.items():
             centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
             radius = float(np.max(np.linalg.norm(points - centre, axis=1)))
-            self._terrain_spheres[link] = (centre, radius)
+            self._terrain_samples[link] = _LinkSamples(
+                link, int(objects[0].parentJoint), points, centre, radius
+            )
+        self._terrain_link_sets: dict[tuple[str, ...], tuple[_LinkSamples, ...]] = {}
 
     # ----------------------------------------------------------------- configuration helpers
     @property
@@ -295,14 +359,13 @@ class LanderModel:
             raise IKError(msg)
         cols = np.array([self.index(j) for j in joints], dtype=np.intp)
         fid = self.frame_id(frame)
-        rng = np.random.default_rng(seed)
+        # Random starts are drawn only when needed, in the same order: same seed, same answer.
+        rng = np.random.default_rng(seed) if restarts > 0 else None
         best = (np.inf, np.inf)
-        starts = [np.array(q0, dtype=np.float64)]
-        for _ in range(restarts):
-            q = np.array(q0, dtype=np.float64)
-            q[cols] = rng.uniform(self.lower[cols], self.upper[cols])
-            starts.append(q)
-        for q_start in starts:
+        for attempt in range(restarts + 1):
+            q_start = np.array(q0, dtype=np.float64)
+            if attempt > 0 and rng is not None:
+                q_start[cols] = rng.uniform(self.lower[cols], self.upper[cols])
             q, pos_err, rot_err = self._dls(
                 fid,
                 target,
@@ -336,28 +399,37 @@ class LanderModel:
         rotation_tolerance: float,
         max_iterations: int,
     ) -> tuple[FloatArray, float, float]:
-        rows = slice(0, 6) if rotation is not None else slice(0, 3)
+        rows = 6 if rotation is not None else 3
+        eye = _EYE[rows]
+        model, data = self.model, self.data
         pos_err = rot_err = np.inf
-        for _ in range(max_iterations):
-            pin.forwardKinematics(self.model, self.data, q)
-            X = pin.updateFramePlacement(self.model, self.data, fid)
-            error = np.zeros(6)
-            error[:3] = target - X.translation
+        checkpoint = np.inf
+        for iteration in range(max_iterations):
+            # The Jacobian call also runs the forward kinematics the frame placement needs.
+            J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)
+            X = pin.updateFramePlacement(model, data, fid)
+            e = target - X.translation
+            pos_err = float(np.sqrt(e @ e))
+            rot_err = 0.0
             if rotation is not None:
-                error[3:] = pin.log3(rotation @ X.rotation.T)
-            pos_err = float(np.linalg.norm(error[:3]))
-            rot_err = float(np.linalg.norm(error[3:]))
+                w = pin.log3(rotation @ X.rotation.T)
+                rot_err = float(np.sqrt(w @ w))
+                e = np.concatenate([e, w])
             if pos_err <= position_tolerance and rot_err <= rotation_tolerance:
                 break
-            J = pin.computeFrameJacobian(self.model, self.data, q, fid, pin.LOCAL_WORLD_ALIGNED)
-            J = J[rows][:, cols]
-            e = error[rows]
+            if iteration % IK_STALL_ITERATIONS == 0:
+                # A start that stopped improving sits in a local minimum (a joint limit, a
+                # singularity); it would spend all its iterations there.
+                if pos_err + rot_err > (1.0 - IK_STALL_GAIN) * checkpoint:
+                    break
+                checkpoint = pos_err + rot_err
+            J = J[:rows, cols]
             # Levenberg-Marquardt damping: robust far away and near singularities (q = 0 is a
             # wrist singularity), vanishing close to the solution for fast final convergence.
-            damping = 1e-6 + 1e-2 * float(e @ e)
-            dq = J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), e)
+            damping = 1e-6 + 1e-2 * (pos_err * pos_err + rot_err * rot_err)
+            dq = J.T @ np.linalg.solve(J @ J.T + damping * eye, e)
             # Bounded steps keep the linearisation honest far from the target.
-            step = float(np.max(np.abs(dq)))
+            step = float(np.abs(dq).max())
             if step > 0.5:
                 dq *= 0.5 / step
             q = q.copy()
@@ -368,9 +440,8 @@ class LanderModel:
         """Bring joint values into their limits: wrap joints whose range spans a full turn (they
         are continuous in the original), clip the others."""
         lower, upper = self.lower[cols], self.upper[cols]
-        full_turn = upper - lower >= 2 * np.pi - 1e-6
         wrapped = lower + np.mod(values - lower, 2 * np.pi)
-        return np.where(full_turn, wrapped, np.clip(values, lower, upper))
+        return np.where(self._full_turn[cols], wrapped, np.clip(values, lower, upper))
 
     # ------------------------------------------------------------------------------- dynamics
     def gravity_torques(self, q: FloatArray) -> FloatArray:
@@ -444,29 +515,38 @@ class LanderModel:
             return True
         if terrain is None:
             return False
-        return self._terrain_penetration(terrain, terrain_links, terrain_margin)[0] is not None
+        hit = self._terrain_penetration(terrain, terrain_links, terrain_margin, first_only=True)
+        return hit[0] is not None
 
     def _terrain_penetration(
-        self, terrain: HeightMap, terrain_links: Iterable[str], terrain_margin: float
+        self,
+        terrain: HeightMap,
+        terrain_links: Iterable[str],
+        terrain_margin: float,
+        first_only: bool = False,
     ) -> tuple[str | None, float]:
         """(deepest link or None, m below the terrain) at the configuration last placed in
-        ``self.data`` (joint placements ``oMi`` must be up to date)."""
+        ``self.data`` (joint placements ``oMi`` must be up to date); with ``first_only`` the
+        first link found below the terrain instead of the deepest."""
         # Most configurations are well clear of the ground: a link whose bounding sphere lies
-        # above the highest terrain point is skipped, and heights are interpolated only under
-        # the sample points that could be below the terrain.
-        top = self._terrain_max(terrain) + terrain_margin
+        # above the highest terrain point (of the whole map, then of the blocks under the
+        # sphere) is skipped, and heights are interpolated only under the sample points that
+        # could be below the terrain.
+        blocks = self._blocks(terrain)
+        top_everywhere = blocks.top + terrain_margin
+        oMi = self.data.oMi
         deepest: str | None = None
         depth = 0.0
-        for link in terrain_links:
-            if link not in self._terrain_samples:
+        for link, joint, local, centre, radius in self._link_samples(terrain_links):
+            placement = oMi[joint]
+            world = placement.act(centre)
+            lowest = world[2] - radius
+            if lowest > top_everywhere:
                 continue
-            joint, local = self._terrain_samples[link]
-            centre, radius = self._terrain_spheres[link]
-            oMi = self.data.oMi[joint]
-            R, p = oMi.rotation, oMi.translation
-            if float(R[2] @ centre) + p[2] - radius > top:
+            top = blocks.highest(world[0], world[1], radius) + terrain_margin
+            if lowest > top:
                 continue
-            pts = local @ R.T + p
+            pts = local @ placement.rotation.T + placement.translation
             near = pts[pts[:, 2] < top]
             if near.size == 0:
                 continue
@@ -475,13 +555,24 @@ class LanderModel:
             )
             if below > depth:
                 deepest, depth = link, below
+                if first_only:
+                    break
         return deepest, depth
 
-    def _terrain_max(self, terrain: HeightMap) -> float:
-        """m, highest point of ``terrain`` (cached for the last map seen)."""
-        if self._terrain_top is None or self._terrain_top[0] is not terrain:
-            self._terrain_top = (terrain, float(np.max(terrain.heights)))
-        return self._terrain_top[1]
+    def _link_samples(self, links: Iterable[str]) -> tuple[_LinkSamples, ...]:
+        """The sample points of those of ``links`` that have collision geometry (cached)."""
+        key = tuple(links)
+        found = self._terrain_link_sets.get(key)
+        if found is None:
+            found = tuple(self._terrain_samples[k] for k in key if k in self._terrain_samples)
+            self._terrain_link_sets[key] = found
+        return found
+
+    def _blocks(self, terrain: HeightMap) -> TerrainBlocks:
+        """The max-pooled blocks of ``terrain`` (cached for the last map seen)."""
+        if self._terrain_blocks is None or self._terrain_blocks.terrain is not terrain:
+            self._terrain_blocks = TerrainBlocks(terrain)
+        return self._terrain_blocks
 
     def link_names(self) -> list[str]:
         """Names of all links (bodies and frame-only links) in the description."""

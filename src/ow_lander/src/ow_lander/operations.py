@@ -297,14 +297,14 @@ class Operations:
             goals.append(near)
         safe = np.array([UNSTOWED[j] for j in ARM_JOINTS])
         for end in goals:
-            if planner.first_invalid(np.vstack([start, end]), ctx) is None:
+            if planner.path_valid(np.vstack([start, end]), ctx):
                 planner.stats.direct_segments += 1
                 return np.vstack([start, end])
             for vias in ([reference], [safe, reference], [safe]):
                 turned = [planner.unwrap(v, end) for v in vias]
                 path = np.vstack([start, *turned, end])
                 if all(planner.is_valid(v, ctx) for v in turned) and (
-                    planner.first_invalid(path, ctx) is None
+                    planner.path_valid(path, ctx)
                 ):
                     planner.stats.direct_segments += len(vias) + 1
                     return path
@@ -686,6 +686,10 @@ class Operations:
         ctx = self._ctx(q, terrain)
         heading = math.atan2(point[1] - SHOULDER_XY[1], point[0] - SHOULDER_XY[0])
         errors = []
+        goals = []
+        # The scoop's heading over the pour point is free: the first heading (in order of
+        # preference) that straight joint moves reach and tip is taken; a sampled path (RRT*)
+        # only when no heading has one.
         for phi in (0.0, heading, math.pi - math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2):
             x_axis = np.array([math.cos(phi), math.sin(phi), 0.0])
             z_axis = np.array([0.0, 0.0, -1.0])
@@ -694,12 +698,26 @@ class Operations:
             try:
                 carry = self.planner.solve_ik(SCOOP_TIP_FRAME, point, carry_R, start, ctx)
                 pour = self.planner.solve_ik(SCOOP_TIP_FRAME, point, pour_R, carry, ctx)
+            except PlanningError as error:
+                errors.append(str(error))
+                continue
+            approach = self.planner.plan_straight(start, carry, ctx)
+            tip = None if approach is None else self.planner.plan_straight(carry, pour, ctx)
+            if approach is not None and tip is not None:
+                return self._delivery(approach, tip, p)
+            goals.append((carry, pour))
+        for carry, pour in goals:
+            try:
                 approach = self.planner.plan_free(start, carry, ctx)
                 tip = self.planner.plan_free(carry, pour, ctx)
             except PlanningError as error:
                 errors.append(str(error))
                 continue
-            segments = [PathSegment("approach", approach), PathSegment("pour", tip)]
-            return OperationPlan("deliver_sample", segments, p)
+            return self._delivery(approach, tip, p)
         msg = f"no way to pour at ({point[0]:.3f}, {point[1]:.3f}, {point[2]:.3f}) m: {errors[0]}"
         raise PlanningError(msg)
+
+    @staticmethod
+    def _delivery(approach: FloatArray, tip: FloatArray, p: dict[str, Any]) -> OperationPlan:
+        segments = [PathSegment("approach", approach), PathSegment("pour", tip)]
+        return OperationPlan("deliver_sample", segments, p)

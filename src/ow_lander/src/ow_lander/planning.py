@@ -37,6 +37,10 @@ FloatArray = npt.NDArray[np.float64]
 
 #: rad, joint step of the work integral reported for plans (gravity torque at step midpoints).
 WORK_STEP_RAD = 0.02
+#: m and rad, largest step of position and orientation between the IK solutions that carry a
+#: configuration to a free-space goal (so the goal keeps the start's kinematic branch).
+IK_STEP_M = 0.05
+IK_STEP_RAD = 0.2
 #: rad, coarser step of the same integral inside RRT*'s objective (called ~20 times an iteration).
 OBJECTIVE_STEP_RAD = 0.25
 
@@ -86,10 +90,19 @@ def densify(waypoints: FloatArray, resolution: float) -> FloatArray:
     points = np.asarray(waypoints, dtype=np.float64)
     out = [points[:1]]
     for a, b in itertools.pairwise(points):
-        n = max(1, int(np.ceil(np.max(np.abs(b - a)) / resolution - 1e-9)))
+        n = max(1, math.ceil(float(np.abs(b - a).max()) / resolution - 1e-9))
         w = np.arange(1, n + 1)[:, None] / n
         out.append(a + w * (b - a))
-    return np.vstack(out)
+    return np.concatenate(out)
+
+
+def _coarse_to_fine(n: int) -> npt.NDArray[np.intp]:
+    """The indices 0..n-1 in bisection order: 0, then the multiples of the largest power of two
+    below n, then the odd multiples of each smaller power of two in turn."""
+    index = np.arange(n)
+    # The largest power of two dividing each index (index 0 first of all).
+    lowest_bit = np.where(index == 0, n + 1, index & -index)
+    return np.argsort(-lowest_bit, kind="stable")
 
 
 class ArmPlanner:
@@ -108,6 +121,13 @@ class ArmPlanner:
         self.upper = model.upper[self.idx].copy()
         self.velocity_limits = model.velocity_limit[self.idx].copy()
         self.stats = PlanStats()
+        self._lower_tol = self.lower - 1e-9
+        self._upper_tol = self.upper + 1e-9
+        #: (index, lower, upper) of the joints whose range spans a full turn.
+        self._full_turn = [
+            (j, float(self.lower[j]), float(self.upper[j]))
+            for j in np.flatnonzero(self.upper - self.lower >= 2 * np.pi - 1e-6)
+        ]
 
     # ------------------------------------------------------------------------------ helpers
     def full(self, arm: FloatArray, base: FloatArray) -> FloatArray:
@@ -122,7 +142,7 @@ class ArmPlanner:
 
     def within_limits(self, arm: FloatArray) -> bool:
         """True when every arm joint is within its URDF limits."""
-        return bool(np.all(arm >= self.lower - 1e-9) and np.all(arm <= self.upper + 1e-9))
+        return bool(((arm >= self._lower_tol) & (arm <= self._upper_tol)).all())
 
     def is_valid(self, arm: FloatArray, ctx: CheckContext) -> bool:
         """True when ``arm`` is within the joint limits and collision-free in ``ctx``."""
@@ -146,8 +166,28 @@ class ArmPlanner:
     ) -> FloatArray | None:
         """The first invalid state along the polyline at ``resolution`` rad (default: the
         configured joint resolution), or None when the whole path is valid."""
-        for arm in densify(waypoints, resolution or self.config.joint_resolution_rad):
-            if not self.is_valid(arm, ctx):
+        states = densify(waypoints, resolution or self.config.joint_resolution_rad)
+        return self._first_invalid_state(states, ctx)
+
+    def path_valid(
+        self, waypoints: FloatArray, ctx: CheckContext, resolution: float | None = None
+    ) -> bool:
+        """True when every state along the polyline at ``resolution`` rad (default: the
+        configured joint resolution) is valid: the states of :meth:`first_invalid`, checked
+        coarse to fine, so that a blocked motion is usually rejected after a few checks."""
+        states = densify(waypoints, resolution or self.config.joint_resolution_rad)
+        return self._first_invalid_state(states[_coarse_to_fine(len(states))], ctx) is None
+
+    def _first_invalid_state(self, states: FloatArray, ctx: CheckContext) -> FloatArray | None:
+        """The first invalid row of ``states`` (m, 6), or None."""
+        inside = np.all((states >= self._lower_tol) & (states <= self._upper_tol), axis=1)
+        q = np.array(ctx.base, dtype=np.float64)
+        in_collision = self.model.in_collision
+        for arm, ok in zip(states, inside.tolist(), strict=True):
+            if not ok:
+                return arm
+            q[self.idx] = arm
+            if in_collision(q, ctx.terrain, ctx.terrain_links, ctx.terrain_margin):
                 return arm
         return None
 
@@ -155,12 +195,12 @@ class ArmPlanner:
         """``arm`` with each full-turn joint moved by whole turns to the value closest to
         ``reference`` that stays within its limits."""
         out = np.array(arm, dtype=np.float64)
-        full_turn = self.upper - self.lower >= 2 * np.pi - 1e-6
-        for j in np.flatnonzero(full_turn):
-            turns = np.round((reference[j] - out[j]) / (2 * np.pi))
+        for j, lower, upper in self._full_turn:
+            value = float(out[j])
+            turns = round((float(reference[j]) - value) / (2 * math.pi))
             for k in (turns, turns - 1, turns + 1):
-                candidate = out[j] + 2 * np.pi * k
-                if self.lower[j] <= candidate <= self.upper[j]:
+                candidate = value + 2 * math.pi * k
+                if lower <= candidate <= upper:
                     out[j] = candidate
                     break
         return out
@@ -180,15 +220,16 @@ class ArmPlanner:
     ) -> float:
         """J, :meth:`work` of the straight joint motion ``a`` -> ``b`` ((6,) rad each)."""
         delta = b - a
-        n = max(1, int(np.ceil(np.max(np.abs(delta)) / step)))
-        mids = a + (np.arange(n)[:, None] + 0.5) * (delta / n)
-        q = np.array(base, dtype=np.float64)
-        model, data, idx = self.model.model, self.model.data, self.idx
-        torque = np.empty((n, len(idx)))
+        n = max(1, math.ceil(float(np.abs(delta).max()) / step))
+        qs = np.tile(np.asarray(base, dtype=np.float64), (n, 1))
+        qs[:, self.idx] = a + (np.arange(n)[:, None] + 0.5) * (delta / n)
+        model, data = self.model.model, self.model.data
+        torque = np.empty_like(qs)
         for i in range(n):
-            q[idx] = mids[i]
-            torque[i] = pin.computeGeneralizedGravity(model, data, q)[idx]
-        return float(np.abs(torque * (delta / n)).sum())
+            torque[i] = pin.computeGeneralizedGravity(model, data, qs[i])
+        # sum over steps and joints of |tau * delta / n| = sum over joints of
+        # |delta / n| * (sum over steps of |tau|).
+        return float(np.abs(torque[:, self.idx]).sum(axis=0) @ np.abs(delta / n))
 
     def cost(self, waypoints: FloatArray, base: FloatArray, step: float = WORK_STEP_RAD) -> float:
         """The objective of a polyline (n, 6): work (J) + weight * joint path length (rad)."""
@@ -230,14 +271,25 @@ class ArmPlanner:
             if not self.is_valid(arm, ctx):
                 msg = f"the {name} configuration is invalid: {self.explain(arm, ctx)}"
                 raise PlanningError(msg)
+        straight = self.plan_straight(start, goal, ctx)
+        if straight is not None:
+            return straight
+        return self.plan_sampled(start, goal, ctx, objective)
+
+    def plan_sampled(
+        self,
+        start: FloatArray,
+        goal: FloatArray,
+        ctx: CheckContext,
+        objective: str = "work",
+    ) -> FloatArray:
+        """The sampling steps of :meth:`plan_free` alone (RRT*, then RRTConnect), shortcut and
+        re-checked at the joint resolution; ``start`` and ``goal`` (6,) rad must be valid.
+
+        Raises:
+            PlanningError: no path found within the caps.
+        """
         direct = np.vstack([start, goal])
-        if self.first_invalid(direct, ctx) is None:
-            self.stats.direct_segments += 1
-            return direct
-        staged = self._staged(start, goal, ctx)
-        if staged is not None:
-            self.stats.direct_segments += 2
-            return staged
         for attempt in range(self.config.rrt_attempts):
             path = self._rrt_star(
                 start, goal, ctx, self.config.seed + attempt, self.config.rrt_check_resolution_rad,
@@ -246,7 +298,7 @@ class ArmPlanner:
             if path is None:
                 continue
             path = self._shortcut(path, ctx, objective)
-            if self.first_invalid(path, ctx) is None:
+            if self.path_valid(path, ctx):
                 self.stats.rrt_segments += 1
                 return path
         if self.config.connect_time_limit_s > 0:
@@ -256,7 +308,7 @@ class ArmPlanner:
             )  # fmt: skip
             if path is not None:
                 path = self._shortcut(path, ctx, objective)
-                if self.first_invalid(path, ctx) is None:
+                if self.path_valid(path, ctx):
                     self.stats.rrt_segments += 1
                     return path
         msg = (
@@ -266,6 +318,22 @@ class ArmPlanner:
             f"(the straight segment is blocked: {self.explain(self._blocked(direct, ctx), ctx)})"
         )
         raise PlanningError(msg)
+
+    def plan_straight(
+        self, start: FloatArray, goal: FloatArray, ctx: CheckContext
+    ) -> FloatArray | None:
+        """The first two steps of :meth:`plan_free` alone: the direct segment ``start`` ->
+        ``goal`` ((6,) rad, both valid) when it is valid, else the cheaper valid pair of staged
+        straight moves; None when neither is, for a caller that prefers another goal to a
+        sampled path."""
+        direct = np.vstack([start, goal])
+        if self.path_valid(direct, ctx):
+            self.stats.direct_segments += 1
+            return direct
+        staged = self._staged(start, goal, ctx)
+        if staged is not None:
+            self.stats.direct_segments += 2
+        return staged
 
     def _staged(self, start: FloatArray, goal: FloatArray, ctx: CheckContext) -> FloatArray | None:
         """Two straight joint moves, as an operator would: the wrist (distal pitch, hand and
@@ -281,7 +349,7 @@ class ArmPlanner:
                 np.r_[goal[:split], start[split:]],
             ):
                 path = np.vstack([start, first, goal])
-                if self.is_valid(first, ctx) and self.first_invalid(path, ctx) is None:
+                if self.is_valid(first, ctx) and self.path_valid(path, ctx):
                     candidates.append(path)
             if candidates:
                 break
@@ -401,8 +469,7 @@ class ArmPlanner:
                 segment = np.vstack([path[i], path[j]])
                 if j == i + 1 or (
                     cost(segment) <= cost(path[i : j + 1]) + 1e-9
-                    and self.first_invalid(segment, ctx, self.config.rrt_check_resolution_rad)
-                    is None
+                    and self.path_valid(segment, ctx, self.config.rrt_check_resolution_rad)
                 ):
                     out.append(path[j])
                     i = j
@@ -461,16 +528,20 @@ class ArmPlanner:
         ctx: CheckContext,
     ) -> FloatArray | None:
         here = self.model.fk(self.full(seed_arm, ctx.base), frame)
-        n = max(1, int(np.ceil(np.linalg.norm(target - here[:3, 3]) / 0.05)))
+        n = max(1, math.ceil(float(np.linalg.norm(target - here[:3, 3])) / IK_STEP_M))
+        # The orientation turns along with the position (geodesic), at most IK_STEP_RAD a step.
+        turn = np.zeros(3) if rotation is None else pin.log3(here[:3, :3].T @ rotation)
+        n = max(n, math.ceil(float(np.linalg.norm(turn)) / IK_STEP_RAD))
         arm = np.asarray(seed_arm, dtype=np.float64)
         for i in range(1, n + 1):
             point = here[:3, 3] + (target - here[:3, 3]) * (i / n)
+            step_rotation = None if rotation is None else here[:3, :3] @ pin.exp3(turn * (i / n))
             try:
                 q = self.model.ik(
                     frame,
                     point,
                     self.full(arm, ctx.base),
-                    rotation=rotation,
+                    rotation=step_rotation,
                     joints=ARM_JOINTS,
                     restarts=0,
                     max_iterations=100,
@@ -513,13 +584,18 @@ class ArmPlanner:
         out = [np.asarray(start, dtype=np.float64)]
         for k, (position, rotation) in enumerate(zip(positions, rotations, strict=True)):
             previous = out[-1]
+            # Waypoints are evenly spaced: the last joint step, repeated, is a close first guess
+            # (IK then converges in one iteration instead of two or three).
+            guess = previous
+            if len(out) > 2:
+                guess = np.clip(2 * previous - out[-2], self.lower, self.upper)
             p = np.asarray(position, dtype=np.float64)
             where = f"({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m"
             try:
                 q = self.model.ik(
                     frame,
                     p,
-                    self.full(previous, ctx.base),
+                    self.full(guess, ctx.base),
                     rotation=rotation,
                     joints=ARM_JOINTS,
                     restarts=0,
@@ -541,7 +617,9 @@ class ArmPlanner:
                     f"would jump {jump[j]:.3f} rad (limit {self.config.max_joint_jump_rad} rad)"
                 )
                 raise PlanningError(msg)
-            bad = self.first_invalid(np.vstack([previous, arm]), ctx)
+            # ``previous`` was checked with the step before (all but the start).
+            states = densify(np.vstack([previous, arm]), self.config.joint_resolution_rad)
+            bad = self._first_invalid_state(states if len(out) == 1 else states[1:], ctx)
             if bad is not None:
                 if partial and len(out) > 1:
                     break
