@@ -408,7 +408,9 @@ class BulletSim:
         self._zeros = np.zeros(n)
 
         self._effort_limit = np.array([self.urdf_joints[j].effort_limit for j in self.names])
+        self._negative_effort_limit = -self._effort_limit
         self._damping = np.array([self.urdf_joints[j].damping for j in self.names])
+        self._negative_damping = -self._damping
         self._kp = np.zeros(n)
         self._ki = np.zeros(n)
         self._kd = np.zeros(n)
@@ -497,7 +499,12 @@ class BulletSim:
         self.time = 0.0
         self.steps = 0
         self._next_carve = 0.0
+        #: joint -> the trajectory it follows.
         self._trajectories: dict[str, ActiveTrajectory] = {}
+        #: each followed trajectory with the indices of its joints that still follow it, in the
+        #: trajectory's and in our joint order (derived from ``_trajectories``).
+        self._followed: list[tuple[ActiveTrajectory, npt.NDArray[np.intp], npt.NDArray[np.intp]]]
+        self._followed = []
         self._setpoint = np.zeros(n)
         self._integral = np.zeros(n)
         self.sample: JointSample
@@ -517,6 +524,7 @@ class BulletSim:
             pb.resetJointState(self.robot, index, position, 0.0, physicsClientId=self.client)
         self._setpoint = q0.copy()
         self._trajectories.clear()
+        self._update_followed()
         gravity = self._bias(q0, np.zeros_like(q0))
         self._integral = np.where(
             self._ki > 0, np.clip(gravity, -self._i_clamp, self._i_clamp), 0.0
@@ -544,7 +552,8 @@ class BulletSim:
         if not math.isfinite(position):
             msg = f"set-point {position} for {joint} is not finite; command ignored"
             raise CommandError(msg)
-        self._trajectories.pop(joint, None)
+        if self._trajectories.pop(joint, None) is not None:
+            self._update_followed()
         self._setpoint[k] = position
 
     def set_trajectory(self, trajectory: JointTrajectory) -> None:
@@ -553,6 +562,19 @@ class BulletSim:
         active = ActiveTrajectory(trajectory, start, self.time)
         for joint in trajectory.joints:
             self._trajectories[joint] = active
+        self._update_followed()
+
+    def _update_followed(self) -> None:
+        followed = []
+        for active in dict.fromkeys(self._trajectories.values()):
+            pairs = [
+                (i, self.names.index(joint))
+                for i, joint in enumerate(active.trajectory.joints)
+                if self._trajectories.get(joint) is active
+            ]
+            src, dst = np.array(pairs, dtype=np.intp).T
+            followed.append((active, src, dst))
+        self._followed = followed
 
     def set_gains(self, joint: str, gains: PidGains) -> None:
         """Change one joint's PID gains now; the integral is kept, within the new clamp.
@@ -585,6 +607,7 @@ class BulletSim:
         k = self.names.index(joint)
         self._kp[k], self._ki[k], self._kd[k] = gains.p, gains.i, gains.d
         self._i_clamp[k] = self._effort_limit[k] if gains.i_clamp is None else gains.i_clamp
+        self._negative_i_clamp = -self._i_clamp
         #: N m s/rad, d + c: the dampers treated implicitly (diagonal of C).
         self._dampers = self._kd + self._damping
         self._solve_model.armature = self.dt * self._dampers
@@ -629,18 +652,15 @@ class BulletSim:
         v = np.array([s[1] for s in states])
 
         v_set = np.zeros(len(q))
-        if self._trajectories:
-            for active in set(self._trajectories.values()):
+        if self._followed:
+            for active, src, dst in self._followed:
                 positions, velocities = active.sample(self.time)
-                for joint, position, velocity in zip(
-                    active.trajectory.joints, positions, velocities, strict=True
-                ):
-                    if self._trajectories.get(joint) is active:
-                        k = self.names.index(joint)
-                        self._setpoint[k] = position
-                        v_set[k] = velocity
-            for joint in [j for j, a in self._trajectories.items() if a.finished(self.time)]:
-                del self._trajectories[joint]
+                self._setpoint[dst] = positions[src]
+                v_set[dst] = velocities[src]
+            if any(active.finished(self.time) for active, _, _ in self._followed):
+                for joint in [j for j, a in self._trajectories.items() if a.finished(self.time)]:
+                    del self._trajectories[joint]
+                self._update_followed()
 
         effort, damping = self._control(q, v, v_set)
         self.sample = JointSample(
@@ -677,24 +697,22 @@ class BulletSim:
         dampers = self._dampers
         v_next = v + dt * self._implicit_solve(q, dampers, drive - bias - dampers * v)
         effort = tau_pi + self._kd * (v_set - v_next)
-        saturated = np.abs(effort) > self._effort_limit
+        integral = self._integral + self._ki * error * dt
+        limit, negative_limit = self._effort_limit, self._negative_effort_limit
+        saturated = np.abs(effort) > limit
         if saturated.any():
             # A saturated joint's effort is its limit, no longer a damper.
-            limited = np.minimum(np.maximum(effort, -self._effort_limit), self._effort_limit)
+            limited = np.minimum(np.maximum(effort, negative_limit), limit)
             dampers = np.where(saturated, 0.0, self._kd) + self._damping
             tau = np.where(saturated, limited, drive)
             v_next = v + dt * self._implicit_solve(q, dampers, tau - bias - dampers * v)
             effort = np.where(saturated, limited, tau_pi + self._kd * (v_set - v_next))
-            effort = np.minimum(np.maximum(effort, -self._effort_limit), self._effort_limit)
-        # Anti-windup: no integration while the effort is saturated in the error's direction.
-        winding = saturated & (np.sign(error) == np.sign(effort))
-        self._integral = np.minimum(
-            np.maximum(
-                self._integral + np.where(winding, 0.0, self._ki * error * dt), -self._i_clamp
-            ),
-            self._i_clamp,
-        )
-        return effort, -self._damping * v_next
+            effort = np.minimum(np.maximum(effort, negative_limit), limit)
+            # Anti-windup: no integration while the effort is saturated in the error's direction.
+            winding = saturated & (np.sign(error) == np.sign(effort))
+            integral = np.where(winding, self._integral, integral)
+        self._integral = np.minimum(np.maximum(integral, self._negative_i_clamp), self._i_clamp)
+        return effort, self._negative_damping * v_next
 
     # ------------------------------------------------------------------ tools and terrain
     def _accumulate_contacts(self) -> None:
@@ -835,36 +853,43 @@ class BulletSim:
             np.array(link_velocity.angular),
         )
 
-    def _height(self, x: float, y: float) -> float:
-        """m, terrain height at one point: ``HeightMap.height_at``'s arithmetic for scalars.
+    def _heights_along(
+        self, x: float, y: float, dx: float, dy: float, distances: tuple[float, ...]
+    ) -> list[float]:
+        """m, terrain heights at (x + a dx, y + a dy) for each a in ``distances``.
 
-        The same operations in the same order on the same doubles, so bit-identical, at a
-        twentieth of the cost of numpy on one point.
+        ``HeightMap.height_at``'s arithmetic for scalars: the same operations in the same order
+        on the same doubles, so bit-identical, at a twentieth of the cost of numpy on one point.
         """
         hm = self._heightmap
-        rows, cols = hm.shape
-        fc = min(max((x - hm.origin_x) / hm.resolution, 0.0), cols - 1.0)
-        fr = min(max((y - hm.origin_y) / hm.resolution, 0.0), rows - 1.0)
-        c0 = min(math.floor(fc), cols - 2)
-        r0 = min(math.floor(fr), rows - 2)
-        tc = fc - c0
-        tr = fr - r0
-        h = hm.heights.item
-        return (1 - tr) * ((1 - tc) * h(r0, c0) + tc * h(r0, c0 + 1)) + tr * (
-            (1 - tc) * h(r0 + 1, c0) + tc * h(r0 + 1, c0 + 1)
-        )
+        origin_x, origin_y, resolution = hm.origin_x, hm.origin_y, hm.resolution
+        rows, cols = self._heights.shape
+        h = self._heights.item
+        heights = []
+        for a in distances:
+            fc = min(max((x + a * dx - origin_x) / resolution, 0.0), cols - 1.0)
+            fr = min(max((y + a * dy - origin_y) / resolution, 0.0), rows - 1.0)
+            c0 = min(math.floor(fc), cols - 2)
+            r0 = min(math.floor(fr), rows - 2)
+            tc = fc - c0
+            tr = fr - r0
+            heights.append(
+                (1 - tr) * ((1 - tc) * h(r0, c0) + tc * h(r0, c0 + 1))
+                + tr * ((1 - tc) * h(r0 + 1, c0) + tc * h(r0 + 1, c0 + 1))
+            )
+        return heights
 
     def _depth(self, tip: FloatArray, tip_velocity: FloatArray) -> tuple[float, float]:
         """(terrain z at the tip, depth of the tip below the terrain at and ahead of it), m."""
         x, y, z = tip.tolist()
-        terrain_z = self._height(x, y)
         vx, vy = float(tip_velocity[0]), float(tip_velocity[1])
         horizontal = float(np.hypot(vx, vy))
         if horizontal < _MOVING_SPEED:
-            surface = terrain_z
+            terrain_z = surface = self._heights_along(x, y, 0.0, 0.0, (0.0,))[0]
         else:
-            dx, dy = vx / horizontal, vy / horizontal
-            surface = max(self._height(x + a * dx, y + a * dy) for a in _LOOKAHEAD_STEPS)
+            # The first distance is 0: the tip itself.
+            ahead = self._heights_along(x, y, vx / horizontal, vy / horizontal, _LOOKAHEAD_STEPS)
+            terrain_z, surface = ahead[0], max(ahead)
         return terrain_z, max(0.0, surface - z)
 
     def _update_tool(self, tool: str) -> ToolState | None:
