@@ -77,8 +77,6 @@ _MOVING_SPEED = 1e-3
 #: m, distances ahead of a moving tip at which the terrain counts for its depth.
 _LOOKAHEAD_STEPS: tuple[float, ...] = tuple(np.linspace(0.0, _DEPTH_LOOKAHEAD, 6).tolist())
 
-#: (row, col) offsets of the four corners of a grid cell from its lower-left corner.
-_CORNERS = np.array([(0, 0), (0, 1), (1, 0), (1, 1)])
 #: m, depth below the surface at which a tool that does not press removes material anyway.
 _EMBEDDED_DEPTH = 0.01
 
@@ -283,6 +281,7 @@ class _ToolTrack:
     """Per-tool contact and dig bookkeeping (mutable, sim thread only)."""
 
     link_index: int
+    #: (3, n) m, points on the link's collision surface in the link frame (one per column).
     surface_points: FloatArray
     last_normal_force: float = 0.0
     force_sum: FloatArray = field(default_factory=lambda: np.zeros(3))
@@ -477,7 +476,8 @@ class BulletSim:
         spacing = heightmap.resolution / 4.0
         self._tools = {
             tool: _ToolTrack(
-                self.link_index[link], collision_surface_points(urdf_text, link, spacing)
+                self.link_index[link],
+                np.ascontiguousarray(collision_surface_points(urdf_text, link, spacing).T),
             )
             for tool, (link, _) in TOOLS.items()
         }
@@ -488,7 +488,8 @@ class BulletSim:
             if self._pin_model.existFrame(name)
         }
 
-        self._heights = np.array(heightmap.heights, dtype=np.float64)
+        # C order: carving indexes it through its flat view.
+        self._heights = np.array(heightmap.heights, dtype=np.float64, order="C")
         self._heightmap = HeightMap(
             self._heights, heightmap.resolution, heightmap.origin_x, heightmap.origin_y
         )
@@ -596,7 +597,8 @@ class BulletSim:
     def set_terrain(self, heightmap: HeightMap) -> None:
         """Replace the terrain (the old one, with its trenches, is discarded)."""
         self._terrain.remove()
-        self._heights = np.array(heightmap.heights, dtype=np.float64)
+        # C order: carving indexes it through its flat view.
+        self._heights = np.array(heightmap.heights, dtype=np.float64, order="C")
         self._heightmap = HeightMap(
             self._heights, heightmap.resolution, heightmap.origin_x, heightmap.origin_y
         )
@@ -762,6 +764,9 @@ class BulletSim:
         powered cutter, removes what it touches by ``carve_step`` at any force."""
         hm = self._heightmap
         rows, cols = self._heights.shape
+        heights = self._heights.reshape(-1)  # a view: cell (r, c) is r * cols + c
+        #: flat offsets of the four corners of a cell from its lower-left corner.
+        corner_offsets = np.array((0, 1, cols, cols + 1))
         changed_rows: list[int] = []
         changed_cols: list[int] = []
         floor = self._terrain.floor + 1e-3
@@ -775,11 +780,10 @@ class BulletSim:
                 continue
             state = pb.getLinkState(self.robot, track.link_index, physicsClientId=self.client)
             rotation = np.asarray(pb.getMatrixFromQuaternion(state[5])).reshape(3, 3)
-            points = track.surface_points @ rotation.T + np.asarray(state[4])
-            col = np.floor((points[:, 0] - hm.origin_x) / hm.resolution).astype(np.intp)
-            row = np.floor((points[:, 1] - hm.origin_y) / hm.resolution).astype(np.intp)
-            inside = (row >= 0) & (row < rows - 1) & (col >= 0) & (col < cols - 1)
-            z = points[:, 2]
+            x, y, z = rotation @ track.surface_points + np.asarray(state[4])[:, None]
+            col = np.floor((x - hm.origin_x) / hm.resolution).astype(np.intp)
+            row = np.floor((y - hm.origin_y) / hm.resolution).astype(np.intp)
+            inside = np.flatnonzero((row >= 0) & (row < rows - 1) & (col >= 0) & (col < cols - 1))
             excess = track.last_normal_force - self.config.terrain_yield_force
             if tool == "grinder" and track.last_normal_force > 0.0:
                 # The grinder is a powered cutter: it removes what it touches at the full rate
@@ -795,22 +799,21 @@ class BulletSim:
                 # Not pressing: only material a tool is well inside (e.g. after a terrain change)
                 # is removed; Bullet's own contact penetration must not make the tool creep down.
                 target, slack = z, _EMBEDDED_DEPTH
-            near = np.zeros(len(points), dtype=bool)
-            near[inside] = (
-                target[inside] + slack < self._heights[row[inside], col[inside]] + hm.resolution
-            )
+            cell = row[inside] * cols + col[inside]
+            near = target[inside] + slack < heights[cell] + hm.resolution
             if not near.any():
                 continue
             # Each point lowers the four corners of its grid cell (the vertices of the Bullet
             # triangles under it).
-            r = (row[near][:, None] + _CORNERS[:, 0]).ravel()
-            c = (col[near][:, None] + _CORNERS[:, 1]).ravel()
-            target = np.maximum(np.repeat(target[near], len(_CORNERS)), floor)
-            cut = self._heights[r, c] > target + slack
+            corners = (cell[near][:, None] + corner_offsets).ravel()
+            target = np.maximum(np.repeat(target[inside[near]], len(corner_offsets)), floor)
+            cut = heights[corners] > target + slack
             if cut.any():
-                np.minimum.at(self._heights, (r[cut], c[cut]), target[cut])
-                changed_rows += [int(r[cut].min()), int(r[cut].max())]
-                changed_cols += [int(c[cut].min()), int(c[cut].max())]
+                corners = corners[cut]
+                np.minimum.at(heights, corners, target[cut])
+                corner_rows, corner_cols = np.divmod(corners, cols)
+                changed_rows += [int(corner_rows.min()), int(corner_rows.max())]
+                changed_cols += [int(corner_cols.min()), int(corner_cols.max())]
         if changed_rows:
             self._terrain.refresh(
                 self._heights,
