@@ -402,6 +402,7 @@ class LanderModel:
         rows = 6 if rotation is not None else 3
         eye = _EYE[rows]
         model, data = self.model, self.data
+        lower, upper = self.lower[cols], self.upper[cols]
         pos_err = rot_err = np.inf
         checkpoint = np.inf
         for iteration in range(max_iterations):
@@ -433,7 +434,10 @@ class LanderModel:
             if step > 0.5:
                 dq *= 0.5 / step
             q = q.copy()
-            q[cols] = self._into_limits(q[cols] + dq, cols)
+            moved = q[cols] + dq
+            if np.any(moved < lower) or np.any(moved > upper):
+                moved = self._into_limits(moved, cols)
+            q[cols] = moved
         return q, pos_err, rot_err
 
     def _into_limits(self, values: FloatArray, cols: npt.NDArray[np.intp]) -> FloatArray:

@@ -37,10 +37,6 @@ FloatArray = npt.NDArray[np.float64]
 
 #: rad, joint step of the work integral reported for plans (gravity torque at step midpoints).
 WORK_STEP_RAD = 0.02
-#: m and rad, largest step of position and orientation between the IK solutions that carry a
-#: configuration to a free-space goal (so the goal keeps the start's kinematic branch).
-IK_STEP_M = 0.05
-IK_STEP_RAD = 0.2
 #: rad, coarser step of the same integral inside RRT*'s objective (called ~20 times an iteration).
 OBJECTIVE_STEP_RAD = 0.25
 
@@ -221,12 +217,13 @@ class ArmPlanner:
         """J, :meth:`work` of the straight joint motion ``a`` -> ``b`` ((6,) rad each)."""
         delta = b - a
         n = max(1, math.ceil(float(np.abs(delta).max()) / step))
-        qs = np.tile(np.asarray(base, dtype=np.float64), (n, 1))
+        qs = np.empty((n, len(base)))
+        qs[:] = base
         qs[:, self.idx] = a + (np.arange(n)[:, None] + 0.5) * (delta / n)
         model, data = self.model.model, self.model.data
         torque = np.empty_like(qs)
-        for i in range(n):
-            torque[i] = pin.computeGeneralizedGravity(model, data, qs[i])
+        for i, q in enumerate(qs):
+            torque[i] = pin.computeGeneralizedGravity(model, data, q)
         # sum over steps and joints of |tau * delta / n| = sum over joints of
         # |delta / n| * (sum over steps of |tau|).
         return float(np.abs(torque[:, self.idx]).sum(axis=0) @ np.abs(delta / n))
@@ -340,22 +337,23 @@ class ArmPlanner:
         scoop yaw) first and then the shoulder and proximal joints, or the other way round;
         failing those, the same with the two yaws alone as the wrist. The cheaper valid one,
         or None."""
-        candidates = []
         # Split after the proximal pitch (wrist = distal pitch, hand and scoop yaw), or after
         # the distal pitch (the two yaws alone: turning the hand where the elbow is open).
         for split in (3, 4):
-            for first in (
-                np.r_[start[:split], goal[split:]],
-                np.r_[goal[:split], start[split:]],
-            ):
-                path = np.vstack([start, first, goal])
-                if self.is_valid(first, ctx) and self.path_valid(path, ctx):
-                    candidates.append(path)
-            if candidates:
-                break
-        if not candidates:
-            return None
-        return min(candidates, key=lambda path: self.cost(path, ctx.base, OBJECTIVE_STEP_RAD))
+            candidates = [
+                np.vstack([start, first, goal])
+                for first in (
+                    np.r_[start[:split], goal[split:]],
+                    np.r_[goal[:split], start[split:]],
+                )
+            ]
+            # Cheaper first: the first valid one is the cheaper valid one, and a costly
+            # candidate is not checked when a cheap one is valid.
+            candidates.sort(key=lambda path: self.cost(path, ctx.base, OBJECTIVE_STEP_RAD))
+            for path in candidates:
+                if self.is_valid(path[1], ctx) and self.path_valid(path, ctx):
+                    return path
+        return None
 
     def _blocked(self, path: FloatArray, ctx: CheckContext) -> FloatArray:
         state = self.first_invalid(path, ctx)
@@ -528,20 +526,16 @@ class ArmPlanner:
         ctx: CheckContext,
     ) -> FloatArray | None:
         here = self.model.fk(self.full(seed_arm, ctx.base), frame)
-        n = max(1, math.ceil(float(np.linalg.norm(target - here[:3, 3])) / IK_STEP_M))
-        # The orientation turns along with the position (geodesic), at most IK_STEP_RAD a step.
-        turn = np.zeros(3) if rotation is None else pin.log3(here[:3, :3].T @ rotation)
-        n = max(n, math.ceil(float(np.linalg.norm(turn)) / IK_STEP_RAD))
+        n = max(1, int(np.ceil(np.linalg.norm(target - here[:3, 3]) / 0.05)))
         arm = np.asarray(seed_arm, dtype=np.float64)
         for i in range(1, n + 1):
             point = here[:3, 3] + (target - here[:3, 3]) * (i / n)
-            step_rotation = None if rotation is None else here[:3, :3] @ pin.exp3(turn * (i / n))
             try:
                 q = self.model.ik(
                     frame,
                     point,
                     self.full(arm, ctx.base),
-                    rotation=step_rotation,
+                    rotation=rotation,
                     joints=ARM_JOINTS,
                     restarts=0,
                     max_iterations=100,
@@ -584,10 +578,13 @@ class ArmPlanner:
         out = [np.asarray(start, dtype=np.float64)]
         for k, (position, rotation) in enumerate(zip(positions, rotations, strict=True)):
             previous = out[-1]
-            # Waypoints are evenly spaced: the last joint step, repeated, is a close first guess
-            # (IK then converges in one iteration instead of two or three).
+            # Waypoints are evenly spaced: the joint path extrapolated from the last solutions
+            # (quadratic, then linear) is a close first guess; IK then needs 0-1 iterations
+            # instead of 1-2.
             guess = previous
-            if len(out) > 2:
+            if len(out) > 3:
+                guess = np.clip(3 * previous - 3 * out[-2] + out[-3], self.lower, self.upper)
+            elif len(out) > 2:
                 guess = np.clip(2 * previous - out[-2], self.lower, self.upper)
             p = np.asarray(position, dtype=np.float64)
             where = f"({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m"
