@@ -85,11 +85,16 @@ def densify(waypoints: FloatArray, resolution: float) -> FloatArray:
     ``resolution`` rad; every waypoint is kept."""
     points = np.asarray(waypoints, dtype=np.float64)
     out = [points[:1]]
-    for a, b in itertools.pairwise(points):
-        n = max(1, math.ceil(float(np.abs(b - a).max()) / resolution - 1e-9))
+    for a, b, n in zip(points[:-1], points[1:], _steps(points, resolution), strict=True):
         w = np.arange(1, n + 1)[:, None] / n
         out.append(a + w * (b - a))
     return np.concatenate(out)
+
+
+def _steps(waypoints: FloatArray, resolution: float) -> list[int]:
+    """How many states :func:`densify` puts on each segment of ``waypoints`` (n, k)."""
+    largest = np.abs(np.diff(waypoints, axis=0)).max(axis=1, initial=0.0)
+    return [max(1, math.ceil(float(d) / resolution - 1e-9)) for d in largest]
 
 
 def _coarse_to_fine(n: int) -> npt.NDArray[np.intp]:
@@ -176,15 +181,20 @@ class ArmPlanner:
 
     def _first_invalid_state(self, states: FloatArray, ctx: CheckContext) -> FloatArray | None:
         """The first invalid row of ``states`` (m, 6), or None."""
+        index = self._first_invalid_index(states, ctx)
+        return None if index is None else states[index]
+
+    def _first_invalid_index(self, states: FloatArray, ctx: CheckContext) -> int | None:
+        """The index of the first invalid row of ``states`` (m, 6), or None."""
         inside = np.all((states >= self._lower_tol) & (states <= self._upper_tol), axis=1)
         q = np.array(ctx.base, dtype=np.float64)
         in_collision = self.model.in_collision
-        for arm, ok in zip(states, inside.tolist(), strict=True):
+        for i, (arm, ok) in enumerate(zip(states, inside.tolist(), strict=True)):
             if not ok:
-                return arm
+                return i
             q[self.idx] = arm
             if in_collision(q, ctx.terrain, ctx.terrain_links, ctx.terrain_margin):
-                return arm
+                return i
         return None
 
     def unwrap(self, arm: FloatArray, reference: FloatArray) -> FloatArray:
@@ -576,6 +586,9 @@ class ArmPlanner:
                 waypoints, or a state collides (the message names the waypoint).
         """
         out = [np.asarray(start, dtype=np.float64)]
+        # IK along the whole line first (each solution seeds the next), then one check of the
+        # joint path; a failure is reported at the first waypoint where either fails.
+        failure: tuple[int, str, Exception] | None = None
         for k, (position, rotation) in enumerate(zip(positions, rotations, strict=True)):
             previous = out[-1]
             # Waypoints are evenly spaced: the joint path extrapolated from the last solutions
@@ -586,12 +599,10 @@ class ArmPlanner:
                 guess = np.clip(3 * previous - 3 * out[-2] + out[-3], self.lower, self.upper)
             elif len(out) > 2:
                 guess = np.clip(2 * previous - out[-2], self.lower, self.upper)
-            p = np.asarray(position, dtype=np.float64)
-            where = f"({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m"
             try:
                 q = self.model.ik(
                     frame,
-                    p,
+                    np.asarray(position, dtype=np.float64),
                     self.full(guess, ctx.base),
                     rotation=rotation,
                     joints=ARM_JOINTS,
@@ -599,35 +610,40 @@ class ArmPlanner:
                     max_iterations=100,
                 )
             except IKError as error:
-                if partial and len(out) > 1:
-                    break
-                msg = f"Cartesian path of {frame} breaks at waypoint {k} {where}: {error}"
-                raise PlanningError(msg) from error
+                failure = (k, "breaks", error)
+                break
             arm = self.unwrap(self.arm(q), previous)
             jump = np.abs(arm - previous)
             j = int(np.argmax(jump))
             if jump[j] > self.config.max_joint_jump_rad:
-                if partial and len(out) > 1:
-                    break
-                msg = (
-                    f"Cartesian path of {frame} breaks at waypoint {k} {where}: {ARM_JOINTS[j]} "
-                    f"would jump {jump[j]:.3f} rad (limit {self.config.max_joint_jump_rad} rad)"
+                reason = (
+                    f"{ARM_JOINTS[j]} would jump {jump[j]:.3f} rad "
+                    f"(limit {self.config.max_joint_jump_rad} rad)"
                 )
-                raise PlanningError(msg)
-            # ``previous`` was checked with the step before (all but the start).
-            states = densify(np.vstack([previous, arm]), self.config.joint_resolution_rad)
-            bad = self._first_invalid_state(states if len(out) == 1 else states[1:], ctx)
-            if bad is not None:
-                if partial and len(out) > 1:
-                    break
-                msg = (
-                    f"Cartesian path of {frame} is blocked at waypoint {k} {where}: "
-                    f"{self.explain(bad, ctx)}"
-                )
-                raise PlanningError(msg)
+                failure = (k, "breaks", PlanningError(reason))
+                break
             out.append(arm)
-            self.stats.cartesian_waypoints += 1
-        return np.array(out)
+        path = np.array(out)
+        states = densify(path, self.config.joint_resolution_rad)
+        bad = self._first_invalid_index(states, ctx)
+        if bad is not None:
+            # The waypoint whose step holds the invalid state (state 0 is the start).
+            ends = np.cumsum(_steps(path, self.config.joint_resolution_rad))
+            k = int(np.searchsorted(ends, bad))
+            failure = (k, "is blocked", PlanningError(self.explain(states[bad], ctx)))
+        if failure is not None:
+            k, what, cause = failure
+            if partial and k > 0:
+                path = path[: k + 1]
+            else:
+                p = np.asarray(positions[k], dtype=np.float64)
+                msg = (
+                    f"Cartesian path of {frame} {what} at waypoint {k} "
+                    f"({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m: {cause}"
+                )
+                raise PlanningError(msg) from cause
+        self.stats.cartesian_waypoints += len(path) - 1
+        return path
 
     def plan_joint_sweep(
         self, start: FloatArray, goal: FloatArray, ctx: CheckContext
