@@ -35,7 +35,7 @@ EUROPA_GRAVITY = 1.315
 #: IK gives up on a start whose error (m + rad) fell by less than IK_STALL_GAIN (relative) over
 #: the last IK_STALL_ITERATIONS iterations: converging starts gain far more (damped least
 #: squares converges in 5-20 iterations from a start that leads to a solution).
-IK_STALL_ITERATIONS = 10
+IK_STALL_ITERATIONS = 5
 IK_STALL_GAIN = 0.01
 
 _EYE = {3: np.eye(3), 6: np.eye(6)}

@@ -701,8 +701,9 @@ class Operations:
             except PlanningError as error:
                 errors.append(str(error))
                 continue
-            approach = self.planner.plan_straight(start, carry, ctx)
-            tip = None if approach is None else self.planner.plan_straight(carry, pour, ctx)
+            # The tip first: a heading whose pour needs a detour is usually refuted there.
+            tip = self.planner.plan_straight(carry, pour, ctx)
+            approach = None if tip is None else self.planner.plan_straight(start, carry, ctx)
             if approach is not None and tip is not None:
                 return self._delivery(approach, tip, p)
             goals.append((carry, pour))
