@@ -59,7 +59,7 @@ class PlannerConfig:
     terrain_margin_m: float = 0.0
     rrt_range_rad: float = 0.6
     rrt_goal_bias: float = 0.1
-    rrt_rewire_factor: float = 0.3
+    rrt_rewire_factor: float = 0.01
     rrt_check_resolution_rad: float = 0.04
     rrt_max_iterations: int = 400
     rrt_improve_iterations: int = 100
