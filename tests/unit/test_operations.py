@@ -160,6 +160,22 @@ def test_deliver_ends_over_the_dock_tipped(ops, terrain):
     assert X[2, 2] > -0.5
 
 
+@pytest.mark.parametrize("seed", [1, 6, 12, 42])
+def test_deliver_from_unstowed_takes_a_heading_straight_moves_reach(terrain, seed):
+    # With some seeds the IK of the first heading gives a pour only a sampled detour reaches
+    # (RRT*); another heading's straight joint moves are preferred to it.
+    model = LanderModel()
+    ops = Operations(ArmPlanner(model, PlannerConfig(seed=seed)))
+    q = _q(model, UNSTOWED)
+    plan = ops.plan_deliver_sample(q, terrain, {"use_defaults": True})
+    assert ops.planner.stats.rrt_segments == 0
+    assert all(len(segment.waypoints) <= 3 for segment in plan.segments)
+    _check_collision_free(ops, q, terrain, plan)
+    X = model.fk(ops.planner.full(plan.end, q), "l_scoop_tip")
+    assert np.allclose(X[:2, 3], DOCK_CENTRE[:2], atol=0.01)
+    assert X[2, 0] < -0.7
+
+
 def test_unstow_ends_unstowed(ops, terrain):
     plan = ops.plan_unstow(_q(ops.model, STOWED), terrain)
     assert np.allclose(plan.end, [UNSTOWED[j] for j in ARM_JOINTS])
