@@ -287,6 +287,8 @@ class _ToolTrack:
     force_sum: FloatArray = field(default_factory=lambda: np.zeros(3))
     moment_sum: FloatArray = field(default_factory=lambda: np.zeros(3))
     samples: int = 0
+    #: a force was added to the sums since they were last cleared.
+    loaded: bool = False
     progress: float = 0.0
     last_tip: FloatArray | None = None
     state: ToolState | None = None
@@ -538,6 +540,7 @@ class BulletSim:
             track.force_sum[:] = 0.0
             track.moment_sum[:] = 0.0
             track.samples = 0
+            track.loaded = False
             track.progress = 0.0
             track.last_tip = None
             track.state = None
@@ -756,6 +759,7 @@ class BulletSim:
             track.last_normal_force = sums[6]
             track.force_sum += sums[0:3]
             track.moment_sum += sums[3:6]
+            track.loaded = True
 
     def _carve(self) -> None:
         """Lower the terrain wherever a tool is below it, and under a tool that presses on it with
@@ -783,7 +787,14 @@ class BulletSim:
             x, y, z = rotation @ track.surface_points + np.asarray(state[4])[:, None]
             col = np.floor((x - hm.origin_x) / hm.resolution).astype(np.intp)
             row = np.floor((y - hm.origin_y) / hm.resolution).astype(np.intp)
-            inside = np.flatnonzero((row >= 0) & (row < rows - 1) & (col >= 0) & (col < cols - 1))
+            # Usually every point is over the grid: a slice then spares the fancy indexing.
+            inside: slice | npt.NDArray[np.intp] = slice(None)
+            if not (row.min() >= 0 and row.max() < rows - 1) or not (
+                col.min() >= 0 and col.max() < cols - 1
+            ):
+                inside = np.flatnonzero(
+                    (row >= 0) & (row < rows - 1) & (col >= 0) & (col < cols - 1)
+                )
             excess = track.last_normal_force - self.config.terrain_yield_force
             if tool == "grinder" and track.last_normal_force > 0.0:
                 # The grinder is a powered cutter: it removes what it touches at the full rate
@@ -800,13 +811,22 @@ class BulletSim:
                 # is removed; Bullet's own contact penetration must not make the tool creep down.
                 target, slack = z, _EMBEDDED_DEPTH
             cell = row[inside] * cols + col[inside]
-            near = target[inside] + slack < heights[cell] + hm.resolution
-            if not near.any():
+            target = target[inside]
+            near = np.flatnonzero(target + slack < heights[cell] + hm.resolution)
+            if not len(near):
                 continue
             # Each point lowers the four corners of its grid cell (the vertices of the Bullet
             # triangles under it).
-            corners = (cell[near][:, None] + corner_offsets).ravel()
-            target = np.maximum(np.repeat(target[inside[near]], len(corner_offsets)), floor)
+            cell = cell[near]
+            target = np.maximum(target[near], floor)
+            highest = np.maximum(
+                np.maximum(heights[cell], heights[cell + 1]),
+                np.maximum(heights[cell + cols], heights[cell + cols + 1]),
+            )
+            if not (highest > target + slack).any():
+                continue  # the usual case: nothing above the tool, nothing to cut
+            corners = (cell[:, None] + corner_offsets).ravel()
+            target = np.repeat(target, len(corner_offsets))
             cut = heights[corners] > target + slack
             if cut.any():
                 corners = corners[cut]
@@ -975,6 +995,7 @@ class BulletSim:
             )
             track.force_sum += force_world
             track.moment_sum += _cross(com, force_world) + torque_world
+            track.loaded = True
 
     # ------------------------------------------------------------------ outputs
     @property
@@ -1008,14 +1029,19 @@ class BulletSim:
             progress = state.progress if state is not None else 0.0
         else:
             progress = track.state.progress if track.state is not None else 0.0
-        count = max(track.samples, 1)
-        origin = np.asarray(X_base_link.translation)
-        force_world = track.force_sum / count
-        moment_world = track.moment_sum / count - _cross(origin, force_world)
-        track.force_sum[:] = 0.0
-        track.moment_sum[:] = 0.0
+        if track.loaded:
+            count = max(track.samples, 1)
+            origin = np.asarray(X_base_link.translation)
+            force_world = track.force_sum / count
+            moment_world = track.moment_sum / count - _cross(origin, force_world)
+            rotation_t = np.asarray(X_base_link.rotation).T
+            force, torque = rotation_t @ force_world, rotation_t @ moment_world
+            track.force_sum[:] = 0.0
+            track.moment_sum[:] = 0.0
+            track.loaded = False
+        else:
+            force, torque = np.zeros(3), np.zeros(3)
         track.samples = 0
-        rotation_t = np.asarray(X_base_link.rotation).T
         return ToolSnapshot(
             tool=tool,
             link=link,
@@ -1028,8 +1054,8 @@ class BulletSim:
             depth=depth,
             progress=progress,
             material=self.config.terrain_material,
-            force=rotation_t @ force_world,
-            torque=rotation_t @ moment_world,
+            force=force,
+            torque=torque,
             model_wrench=track.model_wrench,
             model_depth=track.state.depth
             if track.model_wrench is not None and track.state is not None
@@ -1041,12 +1067,15 @@ class BulletSim:
         wrench on everything beyond the joint (the tools' snapshots), force N and torque N m
         about the joint's origin, in the ``l_dist`` frame. Gravity and inertia of the distal
         links are not in it (as a sensor zeroed at rest)."""
+        loaded = [s for s in snapshots.values() if s.force.any() or s.torque.any()]
+        if not loaded:
+            return np.zeros(3), np.zeros(3)
         self._sample_frames()  # already placed by the tool snapshots of this sample
         X_dist = self._pin_data.oMf[self._frame_id[WRIST_FT_LINK]]
         origin = np.asarray(X_dist.translation)
         force = np.zeros(3)
         torque = np.zeros(3)
-        for snapshot in snapshots.values():
+        for snapshot in loaded:
             R = snapshot.X_base_link[:3, :3]
             f = R @ snapshot.force
             force += f
