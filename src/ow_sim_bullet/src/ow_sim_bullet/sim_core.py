@@ -705,7 +705,7 @@ class BulletSim:
         integral = self._integral + self._ki * error * dt
         limit, negative_limit = self._effort_limit, self._negative_effort_limit
         saturated = np.abs(effort) > limit
-        if saturated.any():
+        if np.count_nonzero(saturated):  # (ndarray.any costs ten times more on 9 values)
             # A saturated joint's effort is its limit, no longer a damper.
             limited = np.minimum(np.maximum(effort, negative_limit), limit)
             dampers = np.where(saturated, 0.0, self._kd) + self._damping
@@ -823,12 +823,12 @@ class BulletSim:
                 np.maximum(heights[cell], heights[cell + 1]),
                 np.maximum(heights[cell + cols], heights[cell + cols + 1]),
             )
-            if not (highest > target + slack).any():
+            if not np.count_nonzero(highest > target + slack):
                 continue  # the usual case: nothing above the tool, nothing to cut
             corners = (cell[:, None] + corner_offsets).ravel()
             target = np.repeat(target, len(corner_offsets))
             cut = heights[corners] > target + slack
-            if cut.any():
+            if np.count_nonzero(cut):
                 corners = corners[cut]
                 np.minimum.at(heights, corners, target[cut])
                 corner_rows, corner_cols = np.divmod(corners, cols)
@@ -946,7 +946,8 @@ class BulletSim:
         # In the ground, or out of it only for a moment (the carving ahead of the tip can zero
         # its depth for a step or two in the middle of a cut): the cut goes on.
         if track.last_tip is not None:
-            track.progress += float(np.linalg.norm(tip - track.last_tip))
+            step = tip - track.last_tip
+            track.progress += math.sqrt(step.dot(step))  # np.linalg.norm's arithmetic
         track.last_tip = tip
         if depth <= 0.0:
             track.state = None
@@ -1067,7 +1068,9 @@ class BulletSim:
         wrench on everything beyond the joint (the tools' snapshots), force N and torque N m
         about the joint's origin, in the ``l_dist`` frame. Gravity and inertia of the distal
         links are not in it (as a sensor zeroed at rest)."""
-        loaded = [s for s in snapshots.values() if s.force.any() or s.torque.any()]
+        loaded = [
+            s for s in snapshots.values() if np.count_nonzero(s.force) or np.count_nonzero(s.torque)
+        ]
         if not loaded:
             return np.zeros(3), np.zeros(3)
         self._sample_frames()  # already placed by the tool snapshots of this sample

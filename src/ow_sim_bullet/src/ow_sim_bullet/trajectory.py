@@ -8,6 +8,7 @@ after the last one it holds the last point.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -131,17 +132,22 @@ class ActiveTrajectory:
             self._times, self._pos = self._times[1:], self._pos[1:]
             if self._vel is not None:
                 self._vel = self._vel[1:]
+        # Sampled every physics step: the times as Python floats (cheaper scalar arithmetic and
+        # bisect than numpy scalars and searchsorted, same values).
+        self._time_list: list[float] = self._times.tolist()
+        self._start_time = trajectory.start_time
+        self._end_time = trajectory.end_time
 
     def sample(self, now: float) -> tuple[FloatArray, FloatArray]:
         """Set-point positions (k,) rad and velocities (k,) rad/s at sim time ``now`` (s)."""
-        t = now - self.trajectory.start_time
-        times = self._times
+        t = now - self._start_time
+        times = self._time_list
         if t <= times[0]:
             return self._pos[0].copy(), np.zeros(self._pos.shape[1])
         if t >= times[-1]:
             last_v = np.zeros(self._pos.shape[1])
             return self._pos[-1].copy(), last_v
-        i = int(np.searchsorted(times, t, side="right")) - 1
+        i = bisect.bisect_right(times, t) - 1
         h = times[i + 1] - times[i]
         s = (t - times[i]) / h
         p0, p1 = self._pos[i], self._pos[i + 1]
@@ -166,4 +172,4 @@ class ActiveTrajectory:
 
     def finished(self, now: float) -> bool:
         """True once sim time ``now`` (s) is past the last point."""
-        return now >= self.trajectory.end_time
+        return now >= self._end_time
