@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import struct
 import threading
 import time
@@ -67,8 +68,20 @@ class _Periodic:
         return True
 
 
+def _genpy_payload(seq: int, build: Callable[..., Any], *args: Any) -> bytes:
+    """The payload of the genpy message ``build(*args)``, its header's seq set to ``seq`` (as
+    ``rospy.msg.serialize_message`` does)."""
+    msg = build(*args)
+    if getattr(msg.__class__, "_has_header", False):
+        msg.header.seq = seq
+    buffer = io.BytesIO()
+    msg.serialize(buffer)
+    return buffer.getvalue()
+
+
 class _WirePublisher:
-    """A rospy publisher (queue_size None) that sends payloads serialised by :mod:`.wire`.
+    """A rospy publisher (queue_size None) that sends payloads serialised by :mod:`.wire` (or
+    by genpy, :func:`_genpy_payload`, for the low-rate messages).
 
     rospy's ``publish()`` costs ~8 us of Python a message on top of genpy's serialisation. This
     frames the payloads (length prefix) and writes them to the publisher's connections the way
@@ -214,6 +227,14 @@ class SimNode:
         self._tip_ground_pub = _WirePublisher("~scoop_tip_ground", PointStamped)
         self._wrist_pub = _WirePublisher("/arm_end_effector_force_torque", WrenchStamped)
         self._wrist_wire = wire.StampedWire(WRIST_FT_LINK)
+        # The tool states are genpy messages (10 Hz), written with the others.
+        self._tool_pubs = {tool: _WirePublisher(f"~{tool}_state", ToolStateMsg) for tool in TOOLS}
+        self._model_state_pubs = {
+            tool: _WirePublisher(f"~{tool}_model_state", ToolStateMsg) for tool in TOOLS
+        }
+        self._model_wrench_pubs = {
+            tool: _WirePublisher(f"~{tool}_model_wrench", WrenchStamped) for tool in TOOLS
+        }
         #: in the order their queued messages are written: /clock first.
         self._wire_pubs = [
             self._clock_pub,
@@ -223,24 +244,13 @@ class SimNode:
             *self._wrench_pubs.values(),
             self._tip_ground_pub,
             self._wrist_pub,
+            *self._tool_pubs.values(),
+            *self._model_state_pubs.values(),
+            *self._model_wrench_pubs.values(),
         ]
         self._unflushed_steps = 0
         #: s of sim time of the last /clock message queued, and of the node's rospy time.
         self._clock_time = self._rostime = -1.0
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", SyntaxWarning)
-            self._tool_pubs = {
-                tool: rospy.Publisher(f"~{tool}_state", ToolStateMsg, queue_size=None)
-                for tool in TOOLS
-            }
-            self._model_state_pubs = {
-                tool: rospy.Publisher(f"~{tool}_model_state", ToolStateMsg, queue_size=None)
-                for tool in TOOLS
-            }
-            self._model_wrench_pubs = {
-                tool: rospy.Publisher(f"~{tool}_model_wrench", WrenchStamped, queue_size=None)
-                for tool in TOOLS
-            }
         self._terrain_pub = rospy.Publisher("~terrain", HeightMapMsg, queue_size=1, latch=True)
         # With /use_sim_time rospy subscribes every node to /clock, this one too. The sim is the
         # clock: it sets rospy's time itself rather than receive its own /clock over TCP, a
@@ -521,15 +531,14 @@ class SimNode:
                 scoop.terrain_z,
             )
         if self._tool_tick.due(sample.time) or force:
-            for tool, publisher in self._tool_pubs.items():
-                if tool in self._snapshots and publisher.get_num_connections():
-                    publisher.publish(conversions.tool_state_msg(self._snapshots[tool]))
-            for tool, publisher in self._model_state_pubs.items():
-                if tool in self._snapshots and publisher.get_num_connections():
-                    publisher.publish(conversions.model_state_msg(self._snapshots[tool]))
-            for tool, publisher in self._model_wrench_pubs.items():
-                if tool in self._snapshots and publisher.get_num_connections():
-                    publisher.publish(conversions.model_wrench_msg(self._snapshots[tool]))
+            for publishers, build in (
+                (self._tool_pubs, conversions.tool_state_msg),
+                (self._model_state_pubs, conversions.model_state_msg),
+                (self._model_wrench_pubs, conversions.model_wrench_msg),
+            ):
+                for tool, publisher in publishers.items():
+                    if tool in self._snapshots:
+                        publisher.publish(_genpy_payload, build, self._snapshots[tool])
         self._publish_terrain_if_due()
 
     def _advance(self) -> None:
