@@ -496,6 +496,7 @@ class BulletSim:
             self._heights, heightmap.resolution, heightmap.origin_x, heightmap.origin_y
         )
         self._terrain = self._make_terrain()
+        self._height_bound = self._highest()
         #: incremented whenever the terrain changes (carving or replacement).
         self.terrain_version = 0
 
@@ -606,6 +607,7 @@ class BulletSim:
             self._heights, heightmap.resolution, heightmap.origin_x, heightmap.origin_y
         )
         self._terrain = self._make_terrain()
+        self._height_bound = self._highest()
         self.terrain_version += 1
 
     def _set_gains_array(self, joint: str, gains: PidGains) -> None:
@@ -902,12 +904,18 @@ class BulletSim:
             )
         return heights
 
+    def _highest(self) -> float:
+        """m, a bound above every interpolated terrain height (carving only lowers it)."""
+        return float(self._heights.max()) + 1e-9
+
     def _depth(self, tip: FloatArray, tip_velocity: FloatArray) -> tuple[float, float]:
         """(terrain z at the tip, depth of the tip below the terrain at and ahead of it), m."""
         x, y, z = tip.tolist()
         vx, vy = float(tip_velocity[0]), float(tip_velocity[1])
         horizontal = float(np.hypot(vx, vy))
-        if horizontal < _MOVING_SPEED:
+        if horizontal < _MOVING_SPEED or z > self._height_bound:
+            # At rest the depth is taken at the tip; above all terrain it is 0 whatever lies
+            # ahead, as the tip's own depth.
             terrain_z = surface = self._heights_along(x, y, 0.0, 0.0, (0.0,))[0]
         else:
             # The first distance is 0: the tip itself.
