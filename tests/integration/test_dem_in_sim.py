@@ -1,13 +1,17 @@
 """Terrain forces in the running simulation (issue 6 acceptance): the same linear dig, through the
-real arm services, once with the shipped DEM table as the sim's terrain-force model and once with
-none.
+real arm services, with the shipped DEM table as the sim's terrain-force model and without.
 
-* At every scoop state the simulation published while the scoop was in the ground, the wrench it
+* With the scoop also in rigid contact with the terrain (the default, as the mission runs): at
+  every scoop state the simulation published while the scoop was in the ground, the wrench it
   reports applying (``/sim/scoop_model_wrench``, same stamp) is the table's wrench for that
   state's material, depth and progress, evaluated here independently from the same CSV.
-* The joint torques and the mechanical power during the cut rise by what those wrenches imply:
-  the motors must hold the extra ``J^T w`` (the table wrench moved to the scoop link origin and
-  mapped through the scoop's Jacobian at the published joint positions).
+* With the DEM as the only terrain force (``tool_contact: false``, the co-simulation setting):
+  the joint torques and the mechanical power during the cut rise by what the table wrenches
+  imply, compared with the same dig without terrain forces: the motors must hold the extra
+  ``J^T w`` (the table wrench moved to the scoop link origin and mapped through the scoop's
+  Jacobian at the published joint positions). With rigid contact as well, the Bullet contact
+  torques differ from run to run by more than the table's (0.2-1.8 N m against ~0.3 N m), so
+  the comparison is made where only the model acts.
 """
 
 from __future__ import annotations
@@ -54,8 +58,9 @@ class DigRecord:
             )
 
 
-def _record_dig(ros_stack: Any, terrain_forces: str) -> DigRecord:
-    """Start a sim with ``terrain_forces`` and the arm services, unstow, dig; stop both."""
+def _record_dig(ros_stack: Any, terrain_forces: str, tool_contact: bool) -> DigRecord:
+    """Start a sim with ``terrain_forces`` (and rigid tool-terrain contact or not) and the arm
+    services, unstow, dig; stop both."""
     import rospy
     from geometry_msgs.msg import WrenchStamped
     from sensor_msgs.msg import JointState
@@ -71,6 +76,7 @@ def _record_dig(ros_stack: Any, terrain_forces: str) -> DigRecord:
                 "terrain": f"flat:{GROUND_Z}",
                 "real_time_factor": 0.0,
                 "terrain_forces": terrain_forces,
+                "tool_contact": tool_contact,
                 "terrain_force_params": {},
             },
             wait_for_topics=[
@@ -133,7 +139,11 @@ def _record_dig(ros_stack: Any, terrain_forces: str) -> DigRecord:
 
 @pytest.fixture(scope="module")
 def digs(ros_stack: Any) -> dict[str, DigRecord]:
-    return {mode: _record_dig(ros_stack, mode) for mode in ("table", "none")}
+    return {
+        "table": _record_dig(ros_stack, "table", tool_contact=True),
+        "table_only": _record_dig(ros_stack, "table", tool_contact=False),
+        "none_only": _record_dig(ros_stack, "none", tool_contact=False),
+    }
 
 
 def _scoop_com() -> np.ndarray:
@@ -201,7 +211,7 @@ def test_applied_wrench_is_the_table_wrench_at_the_sampled_states(digs, record_p
     )
     assert compared >= 10
     # Without terrain forces the sim reports no model wrench at all.
-    for _, _, zero in _in_ground(digs["none"]):
+    for _, _, zero in _in_ground(digs["none_only"]):
         assert np.allclose(_vec(zero.wrench.force), 0.0)
         assert np.allclose(_vec(zero.wrench.torque), 0.0)
 
@@ -269,7 +279,7 @@ class TorqueComparison:
 def torques(digs) -> TorqueComparison:
     model = LanderModel()
     com = _scoop_com()
-    table_rec, none_rec = digs["table"], digs["none"]
+    table_rec, none_rec = digs["table_only"], digs["none_only"]
     cut = [(s, w) for s, _, w in _in_ground(table_rec) if s.depth > 0.0]
     stamps = [s.header.stamp.to_nsec() for s, _ in cut]
     shift = _offset_ns(table_rec, none_rec, stamps)
@@ -329,22 +339,21 @@ def test_both_runs_follow_the_same_trajectory_and_the_table_torque_is_of_lever_s
     )
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known: the table wrench's joint torque (mean |J^T w| <= ~0.3 N m, and it lowers "
-    "|effort| on some joints) is smaller than the run-to-run difference of the Bullet contact "
-    "torques (0.2-1.8 N m), and the sim resets the dig progress whenever carving ahead of the "
-    "tip takes the depth to 0, so only the table's first ~8 cm are read (~0.3 N instead of "
-    "1-2 N); see docs/dem.md",
-)
 def test_joint_torques_and_power_rise_by_what_the_table_wrench_implies(torques):
+    """With the DEM as the only terrain force, the motors' mean |effort| on each joint that
+    carries the cut changes by what holding the table wrench takes (it can fall: the drag
+    unloads some joints), and so does the mechanical power sum |tau omega|."""
     measured, predicted = torques.mean_abs_rise()
     pitch = [ARM.index(j) for j in PITCH_JOINTS]
-    # Within half the predicted rise, or 0.02 N m, on each joint that carries the cut.
+    # The table wrench matters on these joints (tenths of N m) ...
+    assert np.all(np.abs(predicted[pitch]) > 0.1), predicted
+    # ... and the efforts change by it, within 20 % or 0.02 N m.
     assert np.all(
         np.abs(measured[pitch] - predicted[pitch])
-        <= np.maximum(0.5 * np.abs(predicted[pitch]), 0.02)
+        <= np.maximum(0.2 * np.abs(predicted[pitch]), 0.02)
     ), (measured, predicted)
     power_measured, power_predicted = torques.power_rise()
-    assert power_predicted > 0.0
-    assert abs(power_measured - power_predicted) <= max(0.5 * power_predicted, 0.005)
+    assert abs(power_measured - power_predicted) <= max(0.2 * abs(power_predicted), 0.005), (
+        power_measured,
+        power_predicted,
+    )

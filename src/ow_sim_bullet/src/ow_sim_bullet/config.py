@@ -137,6 +137,14 @@ class SimConfig:
         real_time_factor: sim seconds per wall second to pace to; 0 runs as fast as possible.
         gravity: m/s^2, magnitude of gravity along -z of base_link (Europa 1.315).
         start_paused: start with the simulation paused (advance with the step service).
+        gravity_feedforward: the joint controllers add the gravity torque of the measured pose
+            to their PID output (model-based gravity compensation, as arm controllers on real
+            robots do), so the arm rests at its set-points. False: pure PID as the paper, where
+            a joint holds a load only with an error ``(tau_g - I) / Kp`` (the arm rests ~2 mm
+            low at the scoop at full reach; see docs/simulation.md).
+        tool_contact: the scoop and grinder collide with the terrain (Bullet contact). False:
+            they pass through it (still carving it) and only the terrain-force model acts on
+            them: the setting for a DEM that supplies all the terrain's forces.
         terrain: terrain spec, ``flat:<z>``, ``europa:<seed>`` or ``file:<path>``.
         terrain_file_resolution: m per cell of a ``.npy`` or PNG height-map file.
         terrain_file_center: (x, y) m in base_link of the centre of a ``.npy`` or PNG file's grid.
@@ -165,6 +173,8 @@ class SimConfig:
     real_time_factor: float = 1.0
     gravity: float = 1.315
     start_paused: bool = False
+    gravity_feedforward: bool = True
+    tool_contact: bool = True
     terrain: str = "europa:0"
     terrain_file_resolution: float = 0.04
     terrain_file_center: tuple[float, float] = (1.5, 0.0)
@@ -239,11 +249,12 @@ class SimConfig:
                     msg = f"{key} must be a non-empty string, got {raw[key]!r}"
                     raise ConfigError(msg)
                 kwargs[key] = raw[key]
-        if "start_paused" in raw:
-            if not isinstance(raw["start_paused"], bool):
-                msg = f"start_paused must be true or false, got {raw['start_paused']!r}"
-                raise ConfigError(msg)
-            kwargs["start_paused"] = raw["start_paused"]
+        for key in ("start_paused", "gravity_feedforward", "tool_contact"):
+            if key in raw:
+                if not isinstance(raw[key], bool):
+                    msg = f"{key} must be true or false, got {raw[key]!r}"
+                    raise ConfigError(msg)
+                kwargs[key] = raw[key]
         if "terrain_material" in raw:
             material = raw["terrain_material"]
             if (

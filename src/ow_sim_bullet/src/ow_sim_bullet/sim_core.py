@@ -294,6 +294,8 @@ class _ToolTrack:
     state: ToolState | None = None
     model_wrench: Wrench | None = None
     out_since: float | None = None
+    #: (3,) m, the link's centre of mass in the link frame (where model wrenches act).
+    com: FloatArray = field(default_factory=lambda: np.zeros(3))
 
 
 @dataclass(frozen=True)
@@ -460,7 +462,7 @@ class BulletSim:
                 self.robot,
                 link,
                 _TOOL_GROUP if is_tool else _OTHER_GROUP,
-                _TERRAIN_GROUP if is_tool else 0,
+                _TERRAIN_GROUP if is_tool and config.tool_contact else 0,
                 physicsClientId=self.client,
             )
             if is_tool:
@@ -484,6 +486,11 @@ class BulletSim:
             for tool, (link, _) in TOOLS.items()
         }
         self._tool_by_link = {track.link_index: track for track in self._tools.values()}
+        for track in self._tools.values():
+            info = pb.getDynamicsInfo(self.robot, track.link_index, physicsClientId=self.client)
+            track.com = np.array(info[3], dtype=np.float64)
+        #: N m, joint torques of the terrain-force model's wrenches in the current step.
+        self._model_torque = np.zeros(n)
         self._frame_id = {
             name: self._pin_model.getFrameId(name)
             for name in (*self.link_index, "base_link")
@@ -520,8 +527,9 @@ class BulletSim:
     def reset(self) -> None:
         """Put the joints at the initial positions, at rest, holding them; clear trajectories.
 
-        The integral terms start at the gravity torque of the initial pose (for joints with an
-        integral gain), as if the controllers had been holding it: the arm does not sag at start.
+        Without gravity feed-forward the integral terms start at the gravity torque of the
+        initial pose (for joints with an integral gain), as if the controllers had been holding
+        it: the arm does not sag at start. With it they start at zero.
         """
         q0 = np.array([self.config.initial_positions[j] for j in self.names])
         for index, position in zip(self._bullet_index, q0, strict=True):
@@ -530,9 +538,8 @@ class BulletSim:
         self._trajectories.clear()
         self._update_followed()
         gravity = self._bias(q0, np.zeros_like(q0))
-        self._integral = np.where(
-            self._ki > 0, np.clip(gravity, -self._i_clamp, self._i_clamp), 0.0
-        )
+        preload = (self._ki > 0) & (not self.config.gravity_feedforward)
+        self._integral = np.where(preload, np.clip(gravity, -self._i_clamp, self._i_clamp), 0.0)
         zeros = np.zeros(len(self.names))
         self.sample = JointSample(
             self.time, self.names, q0, zeros, gravity, zeros, self._setpoint.copy()
@@ -627,7 +634,10 @@ class BulletSim:
             raise CommandError(msg) from None
 
     def _make_terrain(self) -> BulletTerrain:
-        terrain = BulletTerrain(self.client, self._heightmap, _TERRAIN_GROUP, _TOOL_GROUP)
+        # Both sides' masks exclude the pair when the tools do not touch the terrain (Bullet's
+        # filter may be "either side accepts").
+        mask = _TOOL_GROUP if self.config.tool_contact else 0
+        terrain = BulletTerrain(self.client, self._heightmap, _TERRAIN_GROUP, mask)
         for body in terrain.body_ids:
             pb.changeDynamics(
                 body, -1, lateralFriction=_TERRAIN_FRICTION, physicsClientId=self.client
@@ -635,6 +645,10 @@ class BulletSim:
         return terrain
 
     # ------------------------------------------------------------------ stepping
+    def _gravity(self, q: FloatArray) -> FloatArray:
+        """N m, the joint torques that hold ``q`` against gravity (our order)."""
+        return np.array(pin.computeGeneralizedGravity(self._pin_model, self._pin_data, q))
+
     def _bias(self, q: FloatArray, v: FloatArray) -> FloatArray:
         """N m, gravity + Coriolis joint torques (our order)."""
         return np.array(pin.rnea(self._pin_model, self._pin_data, q, v, self._zeros))
@@ -669,17 +683,25 @@ class BulletSim:
                     del self._trajectories[joint]
                 self._update_followed()
 
-        effort, damping = self._control(q, v, v_set)
+        external = None
+        if self.force_model is not None:
+            self._frames(q, v)
+            if self._apply_terrain_forces(q):
+                external = self._model_torque
+        effort, damping = self._control(q, v, v_set, external)
         self.sample = JointSample(
             self.time, self.names, q, v, effort, damping, self._setpoint.copy()
         )
+        applied = effort + damping
         if self.force_model is not None:
-            self._apply_terrain_forces()
+            self._frames_sample = self.sample  # the frames computed above, at q and v
+            if external is not None:
+                applied = applied + external
         pb.setJointMotorControlArray(
             self.robot,
             self._bullet_index,
             pb.TORQUE_CONTROL,
-            forces=(effort + damping).tolist(),
+            forces=applied.tolist(),
             physicsClientId=self.client,
         )
         pb.stepSimulation(physicsClientId=self.client)
@@ -691,16 +713,25 @@ class BulletSim:
             self._carve()
 
     def _control(
-        self, q: FloatArray, v: FloatArray, v_set: FloatArray
+        self, q: FloatArray, v: FloatArray, v_set: FloatArray, external: FloatArray | None = None
     ) -> tuple[FloatArray, FloatArray]:
-        """Motor effort and damping torque (N m) for this step; updates the integrals."""
+        """Motor effort and damping torque (N m) for this step; updates the integrals.
+
+        ``external`` (N m), joint torques of the forces applied this step besides the motors
+        and dampers (the terrain-force model's): the implicit step must know them, or on a
+        light link (the scoop) one step's acceleration would make the dampers' torque jump.
+        """
         # (M + dt C) v_next = M v + dt (tau - bias) written for the acceleration a, v_next =
         # v + dt a: (M + dt C) a = tau - bias - C v.
         dt = self.dt
         error = self._setpoint - q
         tau_pi = self._kp * error + self._integral
+        if self.config.gravity_feedforward:
+            tau_pi = tau_pi + self._gravity(q)
         drive = tau_pi + self._kd * v_set
         bias = self._bias(q, v)
+        if external is not None:
+            bias = bias - external
         dampers = self._dampers
         v_next = v + dt * self._implicit_solve(q, dampers, drive - bias - dampers * v)
         effort = tau_pi + self._kd * (v_set - v_next)
@@ -971,9 +1002,19 @@ class BulletSim:
         )
         return track.state
 
-    def _apply_terrain_forces(self) -> None:
+    def _apply_terrain_forces(self, q: FloatArray) -> bool:
+        """Query the terrain-force model for each tool in the ground; put the joint torques of
+        its wrenches in :attr:`_model_torque`. True when there are any. The frames must be
+        those at ``q`` and the current joint velocities (:meth:`_frames`).
+
+        A wrench on a link of a fixed-base arm acts on the joints exactly as ``J^T w`` (``J``
+        the link's Jacobian), so it is applied as joint torques computed with pinocchio rather
+        than with pybullet's applyExternalForce/Torque, whose frames are unreliable on the links
+        of a multibody (bullet3 issues 1949, 3950: measured here, a 1 N m torque on the scoop
+        saturated its 30 N m joint).
+        """
         assert self.force_model is not None
-        self._sample_frames()
+        loaded = False
         for tool in TOOLS:
             track = self._tools[tool]
             state = self._update_tool(tool)
@@ -982,29 +1023,26 @@ class BulletSim:
                 continue
             wrench = self.force_model.wrench(state)
             track.model_wrench = wrench
-            link_state = pb.getLinkState(self.robot, track.link_index, physicsClientId=self.client)
-            com = np.asarray(link_state[0])
-            rotation = np.asarray(pb.getMatrixFromQuaternion(link_state[1])).reshape(3, 3)
-            force_world = rotation @ np.asarray(wrench.force, dtype=np.float64)
-            torque_world = rotation @ np.asarray(wrench.torque, dtype=np.float64)
-            pb.applyExternalForce(
-                self.robot,
-                track.link_index,
-                force_world.tolist(),
-                com.tolist(),
-                pb.WORLD_FRAME,
-                physicsClientId=self.client,
+            fid = self._frame_id[TOOLS[tool][0]]
+            X = self._pin_data.oMf[fid]
+            rotation = np.asarray(X.rotation)
+            force = np.asarray(wrench.force, dtype=np.float64)
+            force_world = rotation @ force
+            # About the link origin: the wrench is given about the link's centre of mass.
+            moment_world = rotation @ (
+                np.asarray(wrench.torque, dtype=np.float64) + _cross(track.com, force)
             )
-            pb.applyExternalTorque(
-                self.robot,
-                track.link_index,
-                torque_world.tolist(),
-                pb.WORLD_FRAME,
-                physicsClientId=self.client,
+            jacobian = pin.computeFrameJacobian(
+                self._pin_model, self._pin_data, q, fid, pin.LOCAL_WORLD_ALIGNED
             )
+            torque = jacobian.T @ np.concatenate((force_world, moment_world))
+            self._model_torque = torque if not loaded else self._model_torque + torque
+            loaded = True
+            origin = np.asarray(X.translation)
             track.force_sum += force_world
-            track.moment_sum += _cross(com, force_world) + torque_world
+            track.moment_sum += _cross(origin, force_world) + moment_world
             track.loaded = True
+        return loaded
 
     # ------------------------------------------------------------------ outputs
     @property
