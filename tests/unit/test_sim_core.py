@@ -205,3 +205,20 @@ def test_dig_progress_survives_a_moment_out_of_the_ground(sim):
     at(2.0, 1.80, 0.0)
     assert at(2.1, 1.81, 0.02).progress == pytest.approx(0.0)
     assert at(2.2, 1.83, 0.02).progress == pytest.approx(0.02)
+
+
+def test_implicit_step_solves_the_documented_equation(sim):
+    """The PID's implicit step solves (M + dt diag(dampers)) x = r (pinocchio's ABA with the
+    dampers as armature): the same x as numpy's dense solve with the mass matrix, for the
+    controllers' dampers and for the saturated step's, after which the dampers are restored."""
+    rng = np.random.default_rng(7)
+    data = sim._pin_model.createData()
+    saturated_dampers = sim._dampers.copy()
+    saturated_dampers[-1] = sim._damping[-1]  # a saturated joint loses its derivative damper
+    for _ in range(5):
+        q = rng.uniform(-2.0, 2.0, len(sim.names))
+        rhs = rng.normal(0.0, 10.0, len(sim.names))
+        mass = pin.crba(sim._pin_model, data, q)
+        for dampers in (saturated_dampers, sim._dampers):
+            expected = np.linalg.solve(mass + sim.dt * np.diag(dampers), rhs)
+            assert np.allclose(sim._implicit_solve(q, dampers, rhs), expected, rtol=1e-9, atol=1e-9)
