@@ -289,6 +289,10 @@ class _ToolTrack:
     samples: int = 0
     #: a force was added to the sums since they were last cleared.
     loaded: bool = False
+    #: (3,) N and N m, base_link: the mean force and its moment about the origin in the last
+    #: snapshot, None when the tool had no force then.
+    mean_force: FloatArray | None = None
+    mean_moment: FloatArray | None = None
     progress: float = 0.0
     last_tip: FloatArray | None = None
     state: ToolState | None = None
@@ -549,6 +553,7 @@ class BulletSim:
             track.moment_sum[:] = 0.0
             track.samples = 0
             track.loaded = False
+            track.mean_force = track.mean_moment = None
             track.progress = 0.0
             track.last_tip = None
             track.state = None
@@ -942,11 +947,10 @@ class BulletSim:
     def _depth(self, tip: FloatArray, tip_velocity: FloatArray) -> tuple[float, float]:
         """(terrain z at the tip, depth of the tip below the terrain at and ahead of it), m."""
         x, y, z = tip.tolist()
-        vx, vy = float(tip_velocity[0]), float(tip_velocity[1])
-        horizontal = float(np.hypot(vx, vy))
-        if horizontal < _MOVING_SPEED or z > self._height_bound:
-            # At rest the depth is taken at the tip; above all terrain it is 0 whatever lies
-            # ahead, as the tip's own depth.
+        vx, vy, _ = tip_velocity.tolist()
+        # Above all terrain the depth is 0 whatever lies ahead: look at the tip only, as at rest.
+        horizontal = 0.0 if z > self._height_bound else float(np.hypot(vx, vy))
+        if horizontal < _MOVING_SPEED:
             terrain_z = surface = self._heights_along(x, y, 0.0, 0.0, (0.0,))[0]
         else:
             # The first distance is 0: the tip itself.
@@ -1080,7 +1084,8 @@ class BulletSim:
             count = max(track.samples, 1)
             origin = np.asarray(X_base_link.translation)
             force_world = track.force_sum / count
-            moment_world = track.moment_sum / count - _cross(origin, force_world)
+            track.mean_force, track.mean_moment = force_world, track.moment_sum / count
+            moment_world = track.mean_moment - _cross(origin, force_world)
             rotation_t = np.asarray(X_base_link.rotation).T
             force, torque = rotation_t @ force_world, rotation_t @ moment_world
             track.force_sum[:] = 0.0
@@ -1088,6 +1093,7 @@ class BulletSim:
             track.loaded = False
         else:
             force, torque = np.zeros(3), np.zeros(3)
+            track.mean_force = track.mean_moment = None
         track.samples = 0
         return ToolSnapshot(
             tool=tool,
@@ -1109,26 +1115,21 @@ class BulletSim:
             else 0.0,
         )
 
-    def wrist_wrench(self, snapshots: Mapping[str, ToolSnapshot]) -> tuple[FloatArray, FloatArray]:
+    def wrist_wrench(self) -> tuple[FloatArray, FloatArray]:
         """The force/torque sensor at ``j_dist_pitch`` (later OceanWATERS), tared: the external
-        wrench on everything beyond the joint (the tools' snapshots), force N and torque N m
-        about the joint's origin, in the ``l_dist`` frame. Gravity and inertia of the distal
+        wrench on everything beyond the joint (the tools' last snapshots), force N and torque
+        N m about the joint's origin, in the ``l_dist`` frame. Gravity and inertia of the distal
         links are not in it (as a sensor zeroed at rest)."""
-        loaded = [
-            s for s in snapshots.values() if np.count_nonzero(s.force) or np.count_nonzero(s.torque)
-        ]
-        if not loaded:
+        force = moment = None
+        for track in self._tools.values():
+            if track.mean_force is not None and track.mean_moment is not None:
+                force = track.mean_force if force is None else force + track.mean_force
+                moment = track.mean_moment if moment is None else moment + track.mean_moment
+        if force is None or moment is None:
             return np.zeros(3), np.zeros(3)
         self._sample_frames()  # already placed by the tool snapshots of this sample
         X_dist = self._pin_data.oMf[self._frame_id[WRIST_FT_LINK]]
-        origin = np.asarray(X_dist.translation)
-        force = np.zeros(3)
-        torque = np.zeros(3)
-        for snapshot in loaded:
-            R = snapshot.X_base_link[:3, :3]
-            f = R @ snapshot.force
-            force += f
-            torque += R @ snapshot.torque + _cross(snapshot.X_base_link[:3, 3] - origin, f)
+        torque = moment - _cross(np.asarray(X_dist.translation), force)
         R_dist_t = np.asarray(X_dist.rotation).T
         return R_dist_t @ force, R_dist_t @ torque
 

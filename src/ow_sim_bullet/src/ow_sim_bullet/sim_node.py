@@ -520,7 +520,7 @@ class SimNode:
                 publisher.publish(
                     self._tool_wire[tool].wrench, snapshot.time, snapshot.force, snapshot.torque
                 )
-            wrist_force, wrist_torque = sim.wrist_wrench(self._snapshots)
+            wrist_force, wrist_torque = sim.wrist_wrench()
             self._wrist_pub.publish(self._wrist_wire.wrench, t, wrist_force, wrist_torque)
             scoop = self._snapshots["scoop"]
             self._tip_ground_pub.publish(
