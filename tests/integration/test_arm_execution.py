@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -24,14 +25,29 @@ from ow_lander.description import ARM_JOINTS, UNSTOWED
 from ow_lander.model import ARM_LINKS, LanderModel
 from ow_lander.operations import DOCK_CENTRE, shoulder_yaw_for
 from ow_lander.planning import ArmPlanner, CheckContext
+from ow_lander.terrain import HeightMap
 from ow_lander.trajectory import read_csv
 from ow_msgs.msg import HeightMap as HeightMapMsg
-from ow_msgs.srv import DeliverSample, DigCircular, DigLinear, Grind, GuardedMove, Stow, Unstow
+from ow_msgs.srv import (
+    DeliverSample,
+    DigCircular,
+    DigLinear,
+    Grind,
+    GuardedMove,
+    SetTerrain,
+    Stow,
+    Unstow,
+)
 
 GROUND = -0.155
 #: rad, the arm at rest vs the trajectory's first row / last row.
 START_TOLERANCE = 0.02
 END_TOLERANCE = 0.03
+#: rad/s, every arm joint slower than this = the arm is at rest (the scoop yaw, with a damping
+#: of 50 N m s/rad against a gain of 100 N m/rad, creeps on for a second after arrival).
+REST_SPEED = 1e-3
+#: s (wall), how long to wait for the arm to come to rest.
+REST_WAIT_S = 20.0
 #: Segments in which the tool (and the hand) may be below the original surface.
 DIGGING = {"descend", "pass_1", "shift", "pass_2", "retract", "dip_in", "cut", "lift_out",
            "sweep", "guarded", "lift_off"}  # fmt: skip
@@ -44,25 +60,37 @@ class JointRecorder:
         self.lock = threading.Lock()
         self.samples: list[np.ndarray] = []
         self.latest: np.ndarray | None = None
+        self.speed = np.inf
         self.recording = False
         self.sub = rospy.Subscriber("/joint_states", JointState, self._on, queue_size=1000)
 
     def _on(self, msg: JointState) -> None:
         by_name = dict(zip(msg.name, msg.position, strict=True))
         q = np.array([by_name[j] for j in ARM_JOINTS])
+        speeds = dict(zip(msg.name, msg.velocity, strict=True))
         with self.lock:
             self.latest = q
+            self.speed = max(abs(speeds[j]) for j in ARM_JOINTS)
             if self.recording:
                 self.samples.append(q)
 
+    def wait_for_rest(self) -> None:
+        deadline = time.monotonic() + REST_WAIT_S
+        while self.speed > REST_SPEED:
+            assert time.monotonic() < deadline, f"the arm still moves at {self.speed} rad/s"
+            time.sleep(0.01)
+
     def call(self, service):
-        """Run ``service()`` while recording; (state before, response, samples, state after)."""
+        """Run ``service()`` while recording; (state before, response, samples, state after),
+        both states with the arm at rest."""
+        self.wait_for_rest()
         with self.lock:
             before = None if self.latest is None else self.latest.copy()
             self.samples = []
             self.recording = True
         response = service()
         rospy.sleep(0.3)  # sim time: the last samples arrive
+        self.wait_for_rest()
         with self.lock:
             self.recording = False
             samples = np.array(self.samples)
@@ -91,19 +119,34 @@ def arm(ros_stack, tmp_path_factory):
     return ros_stack, directory, recorder, model, ArmPlanner(model, PlannerConfig())
 
 
+def _fresh_terrain(stack) -> None:
+    """Flat, uncarved ground again: what a test's operation meets does not depend on which
+    tests ran before it on this module's simulation (xdist splits them differently each run)."""
+    reply = stack.service("/sim/set_terrain", SetTerrain)(terrain=f"flat:{GROUND}")
+    assert reply.success, reply.message
+    deadline = time.monotonic() + 10.0
+    while True:  # the latched /sim/terrain carries the new, flat map ...
+        msg = rospy.wait_for_message("/sim/terrain", HeightMapMsg, timeout=10)
+        if np.ptp(height_map_from_msg(msg).heights) == 0.0:
+            break
+        assert time.monotonic() < deadline, "/sim/terrain still shows the carved terrain"
+    time.sleep(0.2)  # ... and the arm services, subscribed to it too, have it as well
+
+
 def _run(arm, name, cls, **fields):
-    """Call one service; check the plan/execution invariants; return what tests look at."""
+    """Call one service on fresh terrain; check the plan/execution invariants; return what
+    tests look at."""
     stack, directory, recorder, model, planner = arm
+    _fresh_terrain(stack)
     before, response, samples, after = recorder.call(lambda: stack.service(name, cls)(**fields))
     assert response.success, response.message
     trajectory = read_csv(directory / response.trajectory_file.rsplit("/", 1)[1])
     # The plan starts where the arm was.
     assert np.abs(trajectory.positions[0] - before).max() < START_TOLERANCE
     # The whole path is collision-free at 0.01 rad, against the terrain the node planned with
-    # (flat: this module never carves deeper than where its own tools go).
+    # (the fresh flat ground).
     base = model.q_from(dict(zip(ARM_JOINTS, before, strict=True)))
-    terrain_msg = rospy.wait_for_message("/sim/terrain", HeightMapMsg, timeout=10)
-    terrain = height_map_from_msg(terrain_msg)
+    terrain = HeightMap.flat(GROUND)
     labels = list(trajectory.segments)
     for label in dict.fromkeys(labels):
         rows = trajectory.positions[[i for i, s in enumerate(labels) if s == label]]
@@ -171,14 +214,14 @@ def test_grind_cuts_at_the_requested_depth_and_length(arm, fields):
     along = (planned[:, :2] - start) @ direction
     assert along[0] == pytest.approx(0.0, abs=0.01)
     assert along[-1] == pytest.approx(length, abs=0.01)
-    # Executed: the grinder tip went down to the depth and cut along the pass. The PID
-    # controllers (the paper's gains, almost no integral action) let the reaching arm sag
-    # under gravity: up to ~1.6 cm deeper at 2.2 m, so the executed depth is held to 2 cm.
+    # Executed: the grinder tip went down to the depth and cut along the pass (within 1 cm:
+    # the controllers' gravity feed-forward keeps the reaching arm from sagging).
     tips = _tips(model, samples, "l_grinder_tip")
     cutting = tips[tips[:, 2] < GROUND - depth / 2]
-    assert np.median(cutting[:, 2]) == pytest.approx(GROUND - depth, abs=0.02)
+    print(f"\nexecuted grind depth error {np.median(cutting[:, 2]) - (GROUND - depth):+.4f} m")
+    assert np.median(cutting[:, 2]) == pytest.approx(GROUND - depth, abs=0.01)
     reach = (cutting[:, :2] - start) @ direction
-    assert reach.max() == pytest.approx(length, abs=0.02)
+    assert reach.max() == pytest.approx(length, abs=0.01)
 
 
 @pytest.mark.parametrize(

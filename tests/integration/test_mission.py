@@ -53,6 +53,9 @@ TRENCH_TOLERANCE_M = 0.01
 UNTOUCHED_DISTANCE_M = 0.3
 TILT_TOLERANCE_RAD = math.radians(10.0)
 ENERGY_RELATIVE = 0.02
+#: s, how far two nodes' sim clocks may differ: each has the last /clock it received, and at
+#: ~40x real time 50 ms of wall latency under load is 2 s of sim time.
+CLOCK_SKEW_S = 2.0
 ENERGY_ABSOLUTE_J = 0.5
 MISSION_TIMEOUT_S = 900.0  # a hang fails the test instead of blocking the suite
 
@@ -195,15 +198,10 @@ def test_trench_is_where_requested(mission, carved):
     assert np.abs(carved.heights - made.heights)[far].max() < 1e-6
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="known: the grinder cuts 5-11 mm below the requested bottom, more at longer reach "
-    "(three runs: max 6.9, 10.3, 10.3 mm). The planned grinder tip is exact (-0.100 and -0.150 m "
-    "below the ground); the executed tip sags 3-8 mm below it under PID control as the arm "
-    "extends, and carving lowers cells up to carve_step (3 mm) below the tool.",
-)
-def test_trench_bottom_within_1cm(mission, carved):
+def test_trench_bottom_within_1cm(mission, carved, record_property):
     errors = _trench_errors(mission, carved)
+    record_property("trench_bottom_errors_m", errors.round(4).tolist())
+    print(f"\ntrench bottom - requested (m): {errors.round(4)}")
     assert np.abs(errors).max() <= TRENCH_TOLERANCE_M, errors.round(4)
 
 
@@ -275,12 +273,15 @@ def test_step_energies_agree_with_the_bags(mission):
         # With P0 too: the window's end must not be cut by the live trace running behind.
         assert step["energy_wh"] == pytest.approx(figures["energy_wh"], rel=ENERGY_RELATIVE)
 
-    # Each step's operation (START/END markers on /arm/operation) lies in the step's window.
+    # Each step's operation (START/END markers on /arm/operation) lies in the step's window. The
+    # markers carry the arm services' clock, the window the mission's: each node has the sim time
+    # of the last /clock it received, so under load they differ by up to a few /clock periods.
     ops = analysis.summary
     assert list(ops["name"]) == [s["service"].rsplit("/", 1)[1] for s in mission.report["steps"]]
     assert ops["success"].all() and ops["complete"].all()
     for step, op in zip(mission.report["steps"], ops.itertuples(index=False), strict=True):
-        assert step["sim_start_s"] <= op.start_s and op.end_s <= step["sim_end_s"] + 0.5, step
+        assert step["sim_start_s"] - CLOCK_SKEW_S <= op.start_s, step
+        assert op.end_s <= step["sim_end_s"] + CLOCK_SKEW_S, step
 
 
 def test_no_ground_stops_the_mission_with_a_clear_report(no_ground):

@@ -278,6 +278,7 @@ def test_scoop_pushed_into_the_terrain_leaves_a_trench(fresh):
     assert lifted.point.z < -0.175  # the true terrain under the tip is the trench bottom
     assert abs(lifted.point.x - above.point.x) < 0.02
     fresh.steps(300)
-    assert fresh.tip_ground.take()[-1].point.z == pytest.approx(lifted.point.z)
+    # The trench stays (the arm, at rest within microns, does not carve any more).
+    assert fresh.tip_ground.take()[-1].point.z == pytest.approx(lifted.point.z, abs=1e-4)
     terrain = fresh.terrain.wait_for(lambda m: min(m.heights) < -0.175, timeout_s=10.0)
     assert max(terrain.heights) == pytest.approx(-0.155)

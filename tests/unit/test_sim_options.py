@@ -19,6 +19,7 @@ import dataclasses
 
 import numpy as np
 import pinocchio as pin
+import pybullet as pb
 import pytest
 
 from ow_lander.description import ARM_JOINTS, SCOOP_ABOVE_GROUND, SCOOP_BELOW_GROUND, URDF_PATH
@@ -144,5 +145,57 @@ def test_without_tool_contact_the_scoop_cuts_through_the_terrain_without_contact
         assert below.tip[2] < -0.155 - 0.02
         # The terrain around the tool was carved down to it.
         assert sim.terrain_height(below.tip[0], below.tip[1]) < -0.155 - 0.01
+    finally:
+        sim.close()
+
+
+def test_a_scoop_pressed_on_hard_ground_takes_the_motor_torque(independent, record_property):
+    """At rest with the scoop pressed on ground too hard to carve, each joint's motor torque
+    less its gravity torque is held by the contact: effort - tau_g = -J^T f (the contact forces
+    from Bullet, mapped with an independent pinocchio model), and the dampers carry nothing.
+    (The implicit dampers once predicted the blocked joints moving and cancelled the motors.)"""
+    config = dataclasses.replace(
+        SimConfig(), terrain_yield_force=1e6, carve_full_force=2e6, carve_step=0.0
+    )
+    sim = BulletSim(config, flat(-0.155))
+    try:
+        joints = list(ARM_JOINTS)
+        for pose, duration in ((SCOOP_ABOVE_GROUND, 8.0), (SCOOP_BELOW_GROUND, 4.0)):
+            sim.set_trajectory(
+                JointTrajectory.build(
+                    joints, sim.time, [duration], [[pose[j] for j in joints]], None, sim.names
+                )
+            )
+            for _ in range(round((duration + 3.0) / sim.dt)):
+                sim.step()
+        sample = sim.sample
+        values = dict(zip(sim.names, sample.position.tolist(), strict=True))
+        model, data = independent.model, independent.data
+        q = independent.q(values)
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        contact = np.zeros(model.nv)
+        for c in pb.getContactPoints(bodyA=sim.robot, physicsClientId=sim.client):
+            force = np.array(c[7]) * c[9] + np.array(c[11]) * c[10] + np.array(c[13]) * c[12]
+            link = next(name for name, index in sim.link_index.items() if index == c[3])
+            fid = model.getFrameId(link)
+            point = np.array(c[5])
+            origin = data.oMf[fid].translation
+            jacobian = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+            contact += jacobian.T @ np.concatenate([force, np.cross(point - origin, force)])
+        gravity = independent.gravity(values)
+        effort = dict(zip(sim.names, sample.effort.tolist(), strict=True))
+        damping = dict(zip(sim.names, sample.damping_effort.tolist(), strict=True))
+        held = {}
+        for joint in PITCH_JOINTS:
+            k = model.joints[model.getJointId(joint)].idx_v
+            held[joint] = (effort[joint] - gravity[joint], -contact[k], damping[joint])
+        record_property("motor_minus_gravity_vs_contact_Nm", held)
+        print(held)
+        loads = [abs(c) for _, c, _ in held.values()]
+        assert max(loads) > 1.0  # the scoop is really pressed on the ground
+        for joint, (motor, contact_torque, damper) in held.items():
+            assert abs(damper) < 0.05 * max(loads), (joint, damper)
+            assert motor == pytest.approx(contact_torque, rel=0.05, abs=0.05), joint
     finally:
         sim.close()

@@ -300,6 +300,9 @@ class _ToolTrack:
     out_since: float | None = None
     #: (3,) m, the link's centre of mass in the link frame (where model wrenches act).
     com: FloatArray = field(default_factory=lambda: np.zeros(3))
+    #: (6,) the last step's contact force (N) and moment about the world origin (N m), world
+    #: frame, or None without contact.
+    last_contact: list[float] | None = None
 
 
 @dataclass(frozen=True)
@@ -558,6 +561,7 @@ class BulletSim:
             track.last_tip = None
             track.state = None
             track.model_wrench = None
+            track.last_contact = None
 
     def set_setpoint(self, joint: str, position: float) -> None:
         """Command one joint's position set-point (rad); cancels its trajectory.
@@ -688,11 +692,16 @@ class BulletSim:
                     del self._trajectories[joint]
                 self._update_followed()
 
-        external = None
+        # Forces besides motors and dampers, for the implicit step's prediction: the tools'
+        # contacts of the last step (Bullet applies this step's itself) and the terrain-force
+        # model's wrenches (applied below as joint torques).
+        external = self._contact_torque(q)
+        model_torque = None
         if self.force_model is not None:
             self._frames(q, v)
             if self._apply_terrain_forces(q):
-                external = self._model_torque
+                model_torque = self._model_torque
+                external = model_torque if external is None else external + model_torque
         effort, damping = self._control(q, v, v_set, external)
         self.sample = JointSample(
             self.time, self.names, q, v, effort, damping, self._setpoint.copy()
@@ -700,8 +709,8 @@ class BulletSim:
         applied = effort + damping
         if self.force_model is not None:
             self._frames_sample = self.sample  # the frames computed above, at q and v
-            if external is not None:
-                applied = applied + external
+            if model_torque is not None:
+                applied = applied + model_torque
         pb.setJointMotorControlArray(
             self.robot,
             self._bullet_index,
@@ -793,8 +802,10 @@ class BulletSim:
             sums = totals.get(link)
             if sums is None:
                 track.last_normal_force = 0.0
+                track.last_contact = None
                 continue
             track.last_normal_force = sums[6]
+            track.last_contact = sums[0:6]
             track.force_sum += sums[0:3]
             track.moment_sum += sums[3:6]
             track.loaded = True
@@ -1005,6 +1016,31 @@ class BulletSim:
             angular_velocity=rotation_t @ angular,
         )
         return track.state
+
+    def _contact_torque(self, q: FloatArray) -> FloatArray | None:
+        """N m, joint torques of the tools' contact forces of the last step, at ``q``; None
+        without contact.
+
+        The implicit dampers apply ``-c v_next`` with ``v_next`` predicted by the step; a
+        prediction that ignored the terrain would have a joint the terrain blocks moving fast,
+        and its dampers would cancel the motor (a tool pushed into the ground felt a fraction of
+        the effort the controller reported). The last step's contact torque is the estimate.
+        """
+        total = None
+        for tool, track in self._tools.items():
+            wrench = track.last_contact
+            if wrench is None:
+                continue
+            fid = self._frame_id[TOOLS[tool][0]]
+            jacobian = pin.computeFrameJacobian(
+                self._pin_model, self._pin_data, q, fid, pin.LOCAL_WORLD_ALIGNED
+            )
+            origin = np.asarray(self._pin_data.oMf[fid].translation)
+            force = np.array(wrench[0:3])
+            moment = np.array(wrench[3:6]) - _cross(origin, force)  # about the link origin
+            torque = jacobian.T @ np.concatenate((force, moment))
+            total = torque if total is None else total + torque
+        return total
 
     def _apply_terrain_forces(self, q: FloatArray) -> bool:
         """Query the terrain-force model for each tool in the ground; put the joint torques of
