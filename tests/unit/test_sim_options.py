@@ -75,6 +75,19 @@ def reach(feedforward: bool) -> tuple[BulletSim, dict[str, float], dict[str, flo
     return sim, start, rest
 
 
+def press_scoop_down(sim: BulletSim, settle: float) -> None:
+    """Scoop above the ground at full reach, then the pose with it 5 cm below the surface; each
+    move followed by ``settle`` seconds."""
+    joints = list(ARM_JOINTS)
+    for pose, duration in ((SCOOP_ABOVE_GROUND, 8.0), (SCOOP_BELOW_GROUND, 4.0)):
+        target = [[pose[j] for j in joints]]
+        sim.set_trajectory(
+            JointTrajectory.build(joints, sim.time, [duration], target, None, sim.names)
+        )
+        for _ in range(round((duration + settle) / sim.dt)):
+            sim.step()
+
+
 @pytest.fixture(scope="module")
 def independent() -> Independent:
     return Independent()
@@ -129,14 +142,7 @@ def test_without_tool_contact_the_scoop_cuts_through_the_terrain_without_contact
     sim = BulletSim(config, flat(-0.155))
     try:
         joints = list(ARM_JOINTS)
-        for pose, duration in ((SCOOP_ABOVE_GROUND, 8.0), (SCOOP_BELOW_GROUND, 4.0)):
-            sim.set_trajectory(
-                JointTrajectory.build(
-                    joints, sim.time, [duration], [[pose[j] for j in joints]], None, sim.names
-                )
-            )
-            for _ in range(round((duration + 1.0) / sim.dt)):
-                sim.step()
+        press_scoop_down(sim, settle=1.0)
         below = sim.tool_snapshot("scoop")
         # The arm reached the pose the rigid terrain would have stopped it short of, untouched.
         error = [SCOOP_BELOW_GROUND[j] - sim.sample.position[sim.names.index(j)] for j in joints]
@@ -159,15 +165,7 @@ def test_a_scoop_pressed_on_hard_ground_takes_the_motor_torque(independent, reco
     )
     sim = BulletSim(config, flat(-0.155))
     try:
-        joints = list(ARM_JOINTS)
-        for pose, duration in ((SCOOP_ABOVE_GROUND, 8.0), (SCOOP_BELOW_GROUND, 4.0)):
-            sim.set_trajectory(
-                JointTrajectory.build(
-                    joints, sim.time, [duration], [[pose[j] for j in joints]], None, sim.names
-                )
-            )
-            for _ in range(round((duration + 3.0) / sim.dt)):
-                sim.step()
+        press_scoop_down(sim, settle=3.0)
         sample = sim.sample
         values = dict(zip(sim.names, sample.position.tolist(), strict=True))
         model, data = independent.model, independent.data
