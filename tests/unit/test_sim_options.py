@@ -187,9 +187,8 @@ def test_a_scoop_pressed_on_hard_ground_takes_the_motor_torque(independent, reco
         held = {}
         for joint in PITCH_JOINTS:
             k = model.joints[model.getJointId(joint)].idx_v
-            held[joint] = (effort[joint] - gravity[joint], -contact[k], damping[joint])
+            held[joint] = (effort[joint] - gravity[joint], float(-contact[k]), damping[joint])
         record_property("motor_minus_gravity_vs_contact_Nm", held)
-        print(held)
         loads = [abs(c) for _, c, _ in held.values()]
         assert max(loads) > 1.0  # the scoop is really pressed on the ground
         for joint, (motor, contact_torque, damper) in held.items():
