@@ -35,6 +35,8 @@ from ow_lander.terrain import HeightMap
 from ow_power.config import DEFAULT_RECORD_TOPICS
 
 #: s of wall time to wait for /power to catch up with the simulation clock.
+#: s (wall), how long to wait for the simulation's services.
+SERVICE_WAIT_S = 30.0
 POWER_WAIT_S = 5.0
 
 #: Steps after which a render of the arm is taken.
@@ -313,6 +315,7 @@ class MissionRunner:
         self.power = PowerTrace()
         self._clock = 0.0
         self._joints: dict[str, float] = {}
+        self._joint_stamp = 0.0
         self._terrain: HeightMap | None = None
         self._lock = threading.Lock()
 
@@ -323,6 +326,19 @@ class MissionRunner:
     def _on_joints(self, msg: Any) -> None:
         with self._lock:
             self._joints = dict(zip(msg.name, msg.position, strict=False))
+            self._joint_stamp = msg.header.stamp.to_sec()
+
+    def _last_joint_stamp(self, quiet_s: float = 0.05, limit_s: float = 2.0) -> float:
+        """s, the stamp of the last /joint_states once none has arrived for ``quiet_s`` (wall):
+        with the simulation paused, the last one it published."""
+        deadline = time.monotonic() + limit_s
+        while True:
+            with self._lock:
+                stamp = self._joint_stamp
+            time.sleep(quiet_s)
+            with self._lock:
+                if self._joint_stamp == stamp or time.monotonic() > deadline:
+                    return self._joint_stamp
 
     def _on_terrain(self, msg: Any) -> None:
         heights = np.asarray(msg.heights, dtype=np.float64).reshape(msg.rows, msg.cols)
@@ -343,6 +359,9 @@ class MissionRunner:
                 "terrain": c.terrain_spec,
                 "real_time_factor": c.real_time_factor,
                 "terrain_forces": c.terrain_forces,
+                # Paused until every node is up: a simulation running at full speed while the
+                # others start would take their CPU and add idle minutes to the mission's sim time.
+                "start_paused": True,
             },
             "arm_services": {
                 "plan_and_execute": True,
@@ -391,31 +410,43 @@ class MissionRunner:
         import rospy
         from rosgraph_msgs.msg import Clock
         from sensor_msgs.msg import JointState
+        from std_srvs.srv import Trigger
 
         from ow_msgs.msg import HeightMap as HeightMapMsg
         from ow_msgs.msg import Power
 
         rospy.init_node("mission", disable_signals=True)
         params = self.node_params()
+        # Started side by side (the simulation paused), then waited for: each node spends a
+        # second or two importing, and they need nothing from one another to start.
+        ready = {
+            ("ow_power", "record"): ((), ()),
+            ("ow_power", "power"): ((), ("/power",)),
+            ("ow_sim_bullet", "sim"): (("/sim/resume",), ("/joint_states",)),
+            ("ow_lander", "arm_services"): (
+                tuple(s.service.format(dig=self.config.dig) for s in STEPS),
+                (),
+            ),
+        }
         nodes = [
-            stack.start_node("ow_power", "record", params=params["record"]),
-            stack.start_node(
-                "ow_power", "power", params=params["power"], wait_for_topics=["/power"]
-            ),
-            stack.start_node(
-                "ow_sim_bullet", "sim", params=params["sim"], wait_for_topics=["/joint_states"]
-            ),
-            stack.start_node(
-                "ow_lander",
-                "arm_services",
-                params=params["arm_services"],
-                wait_for_services=[s.service.format(dig=self.config.dig) for s in STEPS],
-            ),
+            stack.start_node(package, executable, params=params[executable], wait=False)
+            for package, executable in ready
         ]
+        for node, (services, topics) in zip(nodes, ready.values(), strict=True):
+            stack.wait_ready(node, services, topics)
         rospy.Subscriber("/clock", Clock, self._on_clock, queue_size=10)
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=10)
         rospy.Subscriber("/sim/terrain", HeightMapMsg, self._on_terrain, queue_size=1)
         rospy.Subscriber("/power", Power, self._on_power, queue_size=1000)
+        try:
+            rospy.wait_for_service("/sim/resume", timeout=SERVICE_WAIT_S)
+            resumed = rospy.ServiceProxy("/sim/resume", Trigger)()
+        except (rospy.ROSException, rospy.ServiceException) as exc:
+            msg = f"could not start the simulation's clock (/sim/resume): {exc}"
+            raise HarnessError(msg) from exc
+        if not resumed.success:
+            msg = f"/sim/resume refused: {resumed.message}"
+            raise HarnessError(msg)
         # The first step's energy window must start inside the trace.
         if not self.power.wait_until(0.0, POWER_WAIT_S):
             msg = f"no /power message within {POWER_WAIT_S} s of subscribing"
@@ -436,7 +467,10 @@ class MissionRunner:
             result = StepResult(step.name, service, fields)
             self.report.steps.append(result)
             proxy = rospy.ServiceProxy(service, getattr(ow_msgs.srv, srv_name))
+            # The simulation runs only during the steps: what the mission does in between
+            # (energies, renders) neither adds sim time nor competes with it for the CPU.
             result.sim_start_s = self._clock
+            self._sim_clock("resume")
             wall0 = time.monotonic()
             try:
                 response = _call_with_timeout(proxy, fields, c.step_timeout_s)
@@ -449,8 +483,10 @@ class MissionRunner:
                 )
                 response = None
             result.wall_time_s = time.monotonic() - wall0
-            time.sleep(0.05)  # the last /clock messages of the step
-            result.sim_end_s = self._clock
+            self._sim_clock("pause")
+            # The power node computes /power from each /joint_states: the step's window ends
+            # at the last one, which the power trace then reaches.
+            result.sim_end_s = self._last_joint_stamp()
             self.power.wait_until(result.sim_end_s, POWER_WAIT_S)
             if response is not None:
                 result.success = bool(response.success)
@@ -480,6 +516,20 @@ class MissionRunner:
             if not result.success:
                 self.report.error = f"step {step.name} ({service}) failed: {result.message}"
                 return
+
+    def _sim_clock(self, action: str) -> None:
+        """Call ``/sim/pause`` or ``/sim/resume``; a failure is printed, not fatal (the step's
+        own checks report a simulation that does not run)."""
+        import rospy
+        from std_srvs.srv import Trigger
+
+        try:
+            reply = rospy.ServiceProxy(f"/sim/{action}", Trigger)()
+        except (rospy.ROSException, rospy.ServiceException) as exc:
+            print(f"[mission] /sim/{action} failed: {exc}", flush=True)
+            return
+        if not reply.success:
+            print(f"[mission] /sim/{action} refused: {reply.message}", flush=True)
 
     def _render(self, label: str) -> None:
         import matplotlib

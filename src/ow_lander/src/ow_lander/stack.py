@@ -195,6 +195,7 @@ class RosStack:
         wait_for_services: Iterable[str] = (),
         wait_for_topics: Iterable[str] = (),
         timeout_s: float = 60.0,
+        wait: bool = True,
     ) -> NodeProcess:
         """Start ``rosrun <package> <executable>`` and wait until it is ready.
 
@@ -207,6 +208,8 @@ class RosStack:
             wait_for_services: service names that must be offered before this returns.
             wait_for_topics: topic names that must have a publisher before this returns.
             timeout_s: s of wall time to wait for them.
+            wait: False returns at once (start several nodes side by side, then
+                :meth:`wait_ready` for each).
 
         Returns:
             The running node.
@@ -231,8 +234,23 @@ class RosStack:
         )
         node = NodeProcess(node_name, proc, log_path)
         self.nodes.append(node)
-        self._wait(node, set(wait_for_services), set(wait_for_topics), timeout_s)
+        if wait:
+            self.wait_ready(node, wait_for_services, wait_for_topics, timeout_s)
         return node
+
+    def wait_ready(
+        self,
+        node: NodeProcess,
+        services: Iterable[str] = (),
+        topics: Iterable[str] = (),
+        timeout_s: float = 60.0,
+    ) -> None:
+        """Wait until ``node`` offers ``services`` and ``topics`` have publishers.
+
+        Raises:
+            HarnessError: the node exited or was not ready in time (with the end of its log).
+        """
+        self._wait(node, set(services), set(topics), timeout_s)
 
     def _wait(
         self, node: NodeProcess, services: set[str], topics: set[str], timeout_s: float
