@@ -136,14 +136,17 @@ def main() -> None:
             wall_a1 = watch.wait(65.0)
             line("sim_rtf_holding", 60.0 / (wall_a1 - wall_a0), "x real time", window_sim_s=60.0)
 
-            # (b) scoop into the terrain, then dragged sideways through it for 60 s.
+            # (b) scoop into the terrain, then dragged sideways through fresh terrain for 60 s
+            # (one sweep of the shoulder yaw, 1.7 cm/s at the scoop: passes back and forth
+            # through their own trench would leave the scoop out of contact most of the time).
             rospy.ServiceProxy("/sim/pause", Trigger)()
             time.sleep(0.5)
             start = watch.sim
-            points = [(10.0, SCOOP_ABOVE_GROUND), (15.0, SCOOP_BELOW_GROUND)]
-            for k in range(12):
-                yaw = -0.15 if k % 2 == 0 else 0.10
-                points.append((20.0 + 5.0 * k, {**SCOOP_BELOW_GROUND, "j_shou_yaw": yaw}))
+            points = [
+                (10.0, {**SCOOP_ABOVE_GROUND, "j_shou_yaw": -0.3}),
+                (15.0, {**SCOOP_BELOW_GROUND, "j_shou_yaw": -0.3}),
+                (80.0, {**SCOOP_BELOW_GROUND, "j_shou_yaw": 0.35}),
+            ]
             msg = trajectory(points)
             msg.header.stamp = rospy.Time.from_sec(start + 1.0)
             commands.publish(msg)
