@@ -35,8 +35,6 @@ from ow_lander.terrain import HeightMap
 from ow_power.config import DEFAULT_RECORD_TOPICS
 
 #: s of wall time to wait for /power to catch up with the simulation clock.
-#: s (wall), how long to wait for the simulation's services.
-SERVICE_WAIT_S = 30.0
 POWER_WAIT_S = 5.0
 
 #: Steps after which a render of the arm is taken.
@@ -410,7 +408,6 @@ class MissionRunner:
         import rospy
         from rosgraph_msgs.msg import Clock
         from sensor_msgs.msg import JointState
-        from std_srvs.srv import Trigger
 
         from ow_msgs.msg import HeightMap as HeightMapMsg
         from ow_msgs.msg import Power
@@ -438,14 +435,10 @@ class MissionRunner:
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=10)
         rospy.Subscriber("/sim/terrain", HeightMapMsg, self._on_terrain, queue_size=1)
         rospy.Subscriber("/power", Power, self._on_power, queue_size=1000)
-        try:
-            rospy.wait_for_service("/sim/resume", timeout=SERVICE_WAIT_S)
-            resumed = rospy.ServiceProxy("/sim/resume", Trigger)()
-        except (rospy.ROSException, rospy.ServiceException) as exc:
-            msg = f"could not start the simulation's clock (/sim/resume): {exc}"
-            raise HarnessError(msg) from exc
-        if not resumed.success:
-            msg = f"/sim/resume refused: {resumed.message}"
+        # The sim node is ready (it offers /sim/resume): start its clock.
+        error = self._sim_clock("resume")
+        if error is not None:
+            msg = f"could not start the simulation's clock: {error}"
             raise HarnessError(msg)
         # The first step's energy window must start inside the trace.
         if not self.power.wait_until(0.0, POWER_WAIT_S):
@@ -470,7 +463,7 @@ class MissionRunner:
             # The simulation runs only during the steps: what the mission does in between
             # (energies, renders) neither adds sim time nor competes with it for the CPU.
             result.sim_start_s = self._clock
-            self._sim_clock("resume")
+            self._sim_clock_between_steps("resume")
             wall0 = time.monotonic()
             try:
                 response = _call_with_timeout(proxy, fields, c.step_timeout_s)
@@ -483,7 +476,7 @@ class MissionRunner:
                 )
                 response = None
             result.wall_time_s = time.monotonic() - wall0
-            self._sim_clock("pause")
+            self._sim_clock_between_steps("pause")
             # The power node computes /power from each /joint_states: the step's window ends
             # at the last one, which the power trace then reaches.
             result.sim_end_s = self._last_joint_stamp()
@@ -517,19 +510,23 @@ class MissionRunner:
                 self.report.error = f"step {step.name} ({service}) failed: {result.message}"
                 return
 
-    def _sim_clock(self, action: str) -> None:
-        """Call ``/sim/pause`` or ``/sim/resume``; a failure is printed, not fatal (the step's
-        own checks report a simulation that does not run)."""
+    def _sim_clock(self, action: str) -> str | None:
+        """Call ``/sim/pause`` or ``/sim/resume``; None on success, else what went wrong."""
         import rospy
         from std_srvs.srv import Trigger
 
         try:
             reply = rospy.ServiceProxy(f"/sim/{action}", Trigger)()
         except (rospy.ROSException, rospy.ServiceException) as exc:
-            print(f"[mission] /sim/{action} failed: {exc}", flush=True)
-            return
-        if not reply.success:
-            print(f"[mission] /sim/{action} refused: {reply.message}", flush=True)
+            return f"/sim/{action} failed: {exc}"
+        return None if reply.success else f"/sim/{action} refused: {reply.message}"
+
+    def _sim_clock_between_steps(self, action: str) -> None:
+        """:meth:`_sim_clock`, a failure printed, not fatal (the step's own checks report a
+        simulation that does not run)."""
+        error = self._sim_clock(action)
+        if error is not None:
+            print(f"[mission] {error}", flush=True)
 
     def _render(self, label: str) -> None:
         import matplotlib

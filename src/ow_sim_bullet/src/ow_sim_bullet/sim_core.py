@@ -496,8 +496,6 @@ class BulletSim:
         for track in self._tools.values():
             info = pb.getDynamicsInfo(self.robot, track.link_index, physicsClientId=self.client)
             track.com = np.array(info[3], dtype=np.float64)
-        #: N m, joint torques of the terrain-force model's wrenches in the current step.
-        self._model_torque = np.zeros(n)
         self._frame_id = {
             name: self._pin_model.getFrameId(name)
             for name in (*self.link_index, "base_link")
@@ -699,8 +697,8 @@ class BulletSim:
         model_torque = None
         if self.force_model is not None:
             self._frames(q, v)
-            if self._apply_terrain_forces(q):
-                model_torque = self._model_torque
+            model_torque = self._apply_terrain_forces(q)
+            if model_torque is not None:
                 external = model_torque if external is None else external + model_torque
         effort, damping = self._control(q, v, v_set, external)
         self.sample = JointSample(
@@ -1051,10 +1049,10 @@ class BulletSim:
             total = torque if total is None else total + torque
         return total
 
-    def _apply_terrain_forces(self, q: FloatArray) -> bool:
-        """Query the terrain-force model for each tool in the ground; put the joint torques of
-        its wrenches in :attr:`_model_torque`. True when there are any. The frames must be
-        those at ``q`` and the current joint velocities (:meth:`_frames`).
+    def _apply_terrain_forces(self, q: FloatArray) -> FloatArray | None:
+        """Query the terrain-force model for each tool in the ground; return the joint torques
+        (N m) of its wrenches, None when no tool is in the ground. The frames must be those at
+        ``q`` and the current joint velocities (:meth:`_frames`).
 
         A wrench on a link of a fixed-base arm acts on the joints exactly as ``J^T w`` (``J``
         the link's Jacobian), so it is applied as joint torques computed with pinocchio rather
@@ -1063,7 +1061,7 @@ class BulletSim:
         saturated its 30 N m joint).
         """
         assert self.force_model is not None
-        loaded = False
+        total = None
         for tool in TOOLS:
             track = self._tools[tool]
             state = self._update_tool(tool)
@@ -1085,13 +1083,12 @@ class BulletSim:
                 self._pin_model, self._pin_data, q, fid, pin.LOCAL_WORLD_ALIGNED
             )
             torque = jacobian.T @ np.concatenate((force_world, moment_world))
-            self._model_torque = torque if not loaded else self._model_torque + torque
-            loaded = True
+            total = torque if total is None else total + torque
             origin = np.asarray(X.translation)
             track.force_sum += force_world
             track.moment_sum += _cross(origin, force_world) + moment_world
             track.loaded = True
-        return loaded
+        return total
 
     # ------------------------------------------------------------------ outputs
     @property
