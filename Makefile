@@ -10,7 +10,7 @@ setup:
 	@scripts/setup.sh
 
 demo: setup
-	@$(RUN) rosrun ow_lander mission
+	@$(RUN) rosrun ow_mission mission
 
 test: setup lint
 	@$(RUN) python -m pytest -n 2 tests $(PYTEST_ARGS)

@@ -1,6 +1,6 @@
 """End-to-end cost of the sample-collection mission (issue 8): wall time, sim time, memory.
 
-Runs ``rosrun ow_lander mission`` on the default mission (config/mission.yaml) as a user would,
+Runs ``rosrun ow_mission mission`` on the default mission (config/mission.yaml) as a user would,
 with its run directory in a temporary folder, and prints one JSON line per metric from the run's
 ``report.json``. Bar (issue 8): the whole mission in at most 30 s of wall time on the project's
 2-core machine (OceanWATERS: ~363 s of simulated time at ~0.8x real time).
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import yaml
 
-from ow_lander.mission_config import DEFAULT_MISSION_FILE
+from ow_mission.mission_config import DEFAULT_MISSION_FILE
 
 
 def main() -> int:

@@ -23,7 +23,7 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ow_lander.description import SCOOP_ABOVE_GROUND, SCOOP_BELOW_GROUND
-from ow_lander.testing import RosStack, private_master
+from ow_mission.testing import RosStack, private_master
 from ow_msgs.msg import ToolState
 
 OUTPUTS = [

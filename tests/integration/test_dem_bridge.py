@@ -13,7 +13,7 @@ import pytest
 from ow_dem_bridge.api import ToolState
 from ow_dem_bridge.models import make_model
 from ow_dem_bridge.table import load_table
-from ow_lander.testing import HarnessError
+from ow_mission.testing import HarnessError
 
 HEADER = "tool,material,depth_m,progress_m,Fx_N,Fy_N,Fz_N,Tx_Nm,Ty_Nm,Tz_Nm"
 ROWS = [

@@ -8,7 +8,7 @@ import pytest
 import rospy
 from std_srvs.srv import Empty
 
-from ow_lander.testing import HarnessError, RosStack
+from ow_mission.testing import HarnessError, RosStack
 
 
 def test_master_is_private_and_sim_time_is_set(ros_master):

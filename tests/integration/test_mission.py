@@ -1,4 +1,4 @@
-"""The sample-collection mission end to end (issue 8): ``rosrun ow_lander mission <file>`` as a
+"""The sample-collection mission end to end (issue 8): ``rosrun ow_mission mission <file>`` as a
 user runs it, checked against independent sources rather than against its own report.
 
 * the ground found: the terrain as made (``ow_sim_bullet.terrains``, the same code the simulation

@@ -27,6 +27,14 @@ ANTENNA_JOINTS: tuple[str, ...] = ("j_ant_pan", "j_ant_tilt")
 #: All nine movable joints, in URDF document order.
 ALL_JOINTS: tuple[str, ...] = (*ARM_JOINTS, GRINDER_JOINT, *ANTENNA_JOINTS)
 
+#: m/s^2, magnitude of Europa's surface gravity, along -z of base_link (the lander stands level).
+EUROPA_GRAVITY = 1.315
+
+#: m, height of the flat ground in base_link that OceanWATERS' default world puts under the
+#: workspace: default terrain of the simulation, default ``ground_position`` of the services, the
+#: mission's expected ground.
+DEFAULT_GROUND_Z = -0.155
+
 #: Frames the services and tests use.
 BASE_FRAME = "base_link"
 SCOOP_LINK = "l_scoop"

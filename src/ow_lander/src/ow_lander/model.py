@@ -23,14 +23,11 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ow_lander.description import ARM_JOINTS, BASE_FRAME, URDF_PATH
+from ow_lander.description import ARM_JOINTS, BASE_FRAME, EUROPA_GRAVITY, URDF_PATH
 from ow_lander.errors import IKError, ModelError
 from ow_lander.terrain import HeightMap
 
 FloatArray = npt.NDArray[np.float64]
-
-#: m/s^2, surface gravity of Europa.
-EUROPA_GRAVITY = 1.315
 
 #: IK gives up on a start whose error (m + rad) fell by less than IK_STALL_GAIN (relative) over
 #: the last IK_STALL_ITERATIONS iterations: converging starts gain far more (damped least

@@ -4,9 +4,9 @@ from pathlib import Path
 
 import pytest
 
-from ow_lander.errors import ConfigError
-from ow_lander.mission import STEPS, MissionReport, PowerTrace, StepResult
-from ow_lander.mission_config import DEFAULT_MISSION_FILE, MissionConfig
+from ow_mission.errors import ConfigError
+from ow_mission.mission import STEPS, MissionReport, PowerTrace, StepResult
+from ow_mission.mission_config import DEFAULT_MISSION_FILE, MissionConfig
 
 
 def test_the_shipped_mission_file_is_valid_and_complete():

@@ -11,7 +11,7 @@ from ow_power.config import PowerConfig, RecorderConfig
 from ow_power.errors import ConfigError, PowerError
 from ow_power.model import PowerIntegrator, integrate_j, intervals_s, joint_power
 
-CONFIG_YAML = Path(__file__).resolve().parents[2] / "config" / "power.yaml"
+CONFIG_YAML = Path(__file__).resolve().parents[3] / "src" / "ow_power" / "config" / "power.yaml"
 
 
 def test_joint_power_is_looked_up_by_name_in_the_requested_order():

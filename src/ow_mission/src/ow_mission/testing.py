@@ -2,7 +2,7 @@
 
 Use it for the project's own integration tests and for your autonomy tests. In a ``conftest.py``::
 
-    pytest_plugins = ["ow_lander.testing"]
+    pytest_plugins = ["ow_mission.testing"]
 
 and in a test module::
 
@@ -39,7 +39,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from ow_lander.stack import HarnessError, NodeProcess, RosMaster, RosStack, private_master
+from ow_mission.stack import HarnessError, NodeProcess, RosMaster, RosStack, private_master
 
 __all__ = ["HarnessError", "NodeProcess", "RosMaster", "RosStack", "ros_master", "ros_stack"]
 

@@ -1,6 +1,6 @@
 """The autonomous sample-collection mission of the paper (section 3), through the real services.
 
-``rosrun ow_lander mission [file.yaml]`` (and ``make demo``) starts a private rosmaster, the
+``rosrun ow_mission mission [file.yaml]`` (and ``make demo``) starts a private rosmaster, the
 simulation, the arm services (plan-and-execute), the power node and the bag recorder, then acts
 as an autonomy client would: unstow; guarded move at the selected location; grind a trench; dig
 it out and discard the spoil at a remote point; grind again at the bottom; dig the sample; deliver
@@ -28,10 +28,10 @@ from typing import Any
 
 import numpy as np
 
-from ow_lander.errors import ConfigError
-from ow_lander.mission_config import DEFAULT_MISSION_FILE, MissionConfig
-from ow_lander.stack import HarnessError, NodeProcess, RosStack, private_master
 from ow_lander.terrain import HeightMap
+from ow_mission.errors import ConfigError
+from ow_mission.mission_config import DEFAULT_MISSION_FILE, MissionConfig
+from ow_mission.stack import HarnessError, NodeProcess, RosStack, private_master
 from ow_power.config import DEFAULT_RECORD_TOPICS
 
 #: s of wall time to wait for /power to catch up with the simulation clock.
@@ -296,7 +296,8 @@ class MissionRunner:
 
     Args:
         config: the mission.
-        workspace: root of the workspace (``output_dir`` is relative to it).
+        workspace: directory a relative ``output_dir`` is taken from (the command line's
+            working directory).
     """
 
     def __init__(self, config: MissionConfig, workspace: Path) -> None:
@@ -534,7 +535,7 @@ class MissionRunner:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        from ow_lander.render import Camera, render_scene
+        from ow_mission.render import Camera, render_scene
 
         with self._lock:
             joints = dict(self._joints)
@@ -646,11 +647,13 @@ def _process_tree(pid: int) -> list[int]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``rosrun ow_lander mission [mission.yaml]``: run a mission, print the table; 0 on success."""
+    """``rosrun ow_mission mission [file]``: run a mission, print the table; 0 on success."""
     args = sys.argv[1:] if argv is None else argv
     args = [a for a in args if ":=" not in a]  # ROS remapping arguments added by rosrun/roslaunch
     if len(args) > 1 or (args and args[0] in ("-h", "--help")):
-        print("usage: rosrun ow_lander mission [mission.yaml]   (default: config/mission.yaml)")
+        print(
+            f"usage: rosrun ow_mission mission [mission.yaml]   (default: {DEFAULT_MISSION_FILE})"
+        )
         return 0 if args and args[0] in ("-h", "--help") else 2
     path = Path(args[0]) if args else DEFAULT_MISSION_FILE
     try:
@@ -658,8 +661,7 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as exc:
         print(f"mission: {exc}", file=sys.stderr)
         return 2
-    workspace = DEFAULT_MISSION_FILE.parents[1]
-    runner = MissionRunner(config, workspace)
+    runner = MissionRunner(config, Path.cwd())
     print(f"[mission] {config.name}: writing {runner.run_dir}", flush=True)
     report = runner.run()
     print(report.table())

@@ -1,6 +1,6 @@
 """The sample-collection mission's parameters: a YAML file validated into a frozen dataclass.
 
-The default mission is ``config/mission.yaml``; ``rosrun ow_lander mission <file>`` runs another.
+The default mission is ``config/mission.yaml``; ``rosrun ow_mission mission <file>`` runs another.
 Every key of the file is optional (a missing key keeps the default below); an unknown key, a value
 of the wrong type or out of range raises :class:`ConfigError` naming the key.
 """
@@ -15,10 +15,10 @@ from typing import Any
 
 import yaml
 
-from ow_lander.errors import ConfigError
+from ow_mission.errors import ConfigError
 
 #: The default mission file shipped with the workspace.
-DEFAULT_MISSION_FILE: Path = Path(__file__).resolve().parents[4] / "config" / "mission.yaml"
+DEFAULT_MISSION_FILE: Path = Path(__file__).resolve().parents[2] / "config" / "mission.yaml"
 
 
 def _number(raw: Mapping[str, Any], key: str, default: float, low: float, high: float) -> float:

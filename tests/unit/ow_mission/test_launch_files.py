@@ -5,10 +5,12 @@ from pathlib import Path
 
 import pytest
 
-LAUNCH_DIR = Path(__file__).resolve().parents[2] / "launch"
+SRC_DIR = Path(__file__).resolve().parents[3] / "src"
 
 
-@pytest.mark.parametrize("launch_file", sorted(LAUNCH_DIR.glob("*.launch")), ids=lambda p: p.name)
+@pytest.mark.parametrize(
+    "launch_file", sorted(SRC_DIR.glob("*/launch/*.launch")), ids=lambda p: p.name
+)
 def test_launch_file_resolves(launch_file: Path):
     files = subprocess.run(
         ["roslaunch", "--files", str(launch_file)], capture_output=True, text=True, check=False

@@ -22,11 +22,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ow_mission.errors import HarnessError
+
 _HARNESS_CALLER = "/ow_testing_harness"
-
-
-class HarnessError(RuntimeError):
-    """A master or node could not be started, or a wait timed out."""
 
 
 def free_port() -> int:
