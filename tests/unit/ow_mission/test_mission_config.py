@@ -23,20 +23,31 @@ def test_the_shipped_mission_file_is_valid_and_complete():
 @pytest.mark.parametrize(
     ("raw", "match"),
     [
-        ({"trench_depth": -0.1}, r"'trench_depth' = -0.1 is outside"),
-        ({"x": float("nan")}, "'x' must be a finite number"),
-        ({"x": "far"}, "'x' must be a finite number"),
-        ({"dig": "spiral"}, "'dig' must be 'linear' or 'circular'"),
-        ({"discard": [1, 2]}, "'discard' must be three finite numbers"),
-        ({"seed": -3}, "'seed' must be a non-negative integer"),
-        ({"parallel": "yes"}, "'parallel' must be true or false"),
-        ({"depth": 0.1}, r"unknown mission keys \['depth'\]"),
-        ({"node_params": {"sim": 3}}, "'node_params' must map node names"),
+        ({"trench_depth": -0.1}, r"mission/trench_depth = -0.1 m is outside \[0.001, 0.3\] m"),
+        ({"x": float("nan")}, "mission/x must be finite"),
+        ({"x": "far"}, "mission/x must be a number"),
+        ({"dig": "spiral"}, "mission/dig = 'spiral' is not one of linear, circular"),
+        ({"discard": [1, 2]}, "mission/discard must be three numbers"),
+        ({"discard": [1, 2, "up"]}, r"mission/discard\[2\] must be a number"),
+        ({"seed": -3}, r"mission/seed = -3 is outside \[0, inf\]"),
+        ({"parallel": "yes"}, "mission/parallel must be true or false"),
+        ({"depth": 0.1}, "unknown key 'mission/depth'"),
+        ({"node_params": {"sim": 3}}, "mission/node_params must map node names"),
     ],
 )
 def test_bad_mission_values_name_the_key(raw, match):
     with pytest.raises(ConfigError, match=match):
         MissionConfig.from_dict(raw)
+
+
+def test_every_mistake_is_named_at_once_with_suggestions():
+    with pytest.raises(ConfigError) as caught:
+        MissionConfig.from_dict({"trench_dept": 0.05, "x": 9.0, "dig": "linaer"})
+    text = str(caught.value)
+    assert text.startswith("3 problems in mission:")
+    assert "unknown key 'mission/trench_dept' (did you mean 'trench_depth'?)" in text
+    assert "mission/x = 9 m is outside [-3, 3] m" in text
+    assert "mission/dig = 'linaer' is not one of linear, circular (did you mean 'linear'?)" in text
 
 
 def test_missing_and_broken_files(tmp_path: Path):

@@ -1,35 +1,26 @@
 """The sample-collection mission's parameters: a YAML file validated into a frozen dataclass.
 
-The default mission is ``config/mission.yaml``; ``rosrun ow_mission mission <file>`` runs another.
-Every key of the file is optional (a missing key keeps the default below); an unknown key, a value
-of the wrong type or out of range raises :class:`ConfigError` naming the key.
+The default mission is ``src/ow_mission/config/mission.yaml``; ``rosrun ow_mission mission <file>``
+runs another.
+Every key of the file is optional (a missing key keeps the default below); unknown keys, values of
+the wrong type or out of range raise one :class:`ConfigError` naming every bad key.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from ow_lander.description import DEFAULT_GROUND_Z
+from ow_lander.params import Params
 from ow_mission.errors import ConfigError
 
 #: The default mission file shipped with the workspace.
 DEFAULT_MISSION_FILE: Path = Path(__file__).resolve().parents[2] / "config" / "mission.yaml"
-
-
-def _number(raw: Mapping[str, Any], key: str, default: float, low: float, high: float) -> float:
-    value = raw.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        msg = f"mission key {key!r} must be a finite number, got {value!r}"
-        raise ConfigError(msg)
-    if not low <= value <= high:
-        msg = f"mission key {key!r} = {value} is outside [{low}, {high}]"
-        raise ConfigError(msg)
-    return float(value)
 
 
 @dataclass(frozen=True)
@@ -66,7 +57,7 @@ class MissionConfig:
     seed: int = 7
     x: float = 1.65
     y: float = 0.0
-    expected_ground: float = -0.155
+    expected_ground: float = DEFAULT_GROUND_Z
     approach_height: float = 0.25
     search_distance: float = 0.5
     trench_depth: float = 0.10
@@ -87,74 +78,68 @@ class MissionConfig:
     def from_dict(cls, raw: Mapping[str, Any]) -> MissionConfig:
         """Validate a mission mapping (the YAML file's content).
 
+        Every problem is collected and reported at once; a misspelt key gets the nearest known
+        key as a suggestion.
+
         Raises:
-            ConfigError: unknown key, wrong type or value out of range; the message names the key.
+            ConfigError: unknown keys, wrong types or values out of range; the message names
+                each key.
         """
         if not isinstance(raw, Mapping):
             msg = f"a mission file must hold a mapping of keys, got {type(raw).__name__}"
             raise ConfigError(msg)
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(raw) - known)
-        if unknown:
-            msg = f"unknown mission keys {unknown}; known keys: {sorted(known)}"
-            raise ConfigError(msg)
         d = cls()
-        for key in ("name", "terrain", "dig", "terrain_forces", "output_dir"):
-            if not isinstance(raw.get(key, getattr(d, key)), str):
-                msg = f"mission key {key!r} must be a string, got {raw[key]!r}"
-                raise ConfigError(msg)
-        for key in ("parallel", "renders"):
-            if not isinstance(raw.get(key, getattr(d, key)), bool):
-                msg = f"mission key {key!r} must be true or false, got {raw[key]!r}"
-                raise ConfigError(msg)
-        seed = raw.get("seed", d.seed)
-        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-            msg = f"mission key 'seed' must be a non-negative integer, got {seed!r}"
-            raise ConfigError(msg)
-        dig = raw.get("dig", d.dig)
-        if dig not in ("linear", "circular"):
-            msg = f"mission key 'dig' must be 'linear' or 'circular', got {dig!r}"
-            raise ConfigError(msg)
-        discard = raw.get("discard", list(d.discard))
-        if (
-            not isinstance(discard, list | tuple)
-            or len(discard) != 3
-            or not all(
-                isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-                for v in discard
-            )
-        ):
-            msg = f"mission key 'discard' must be three finite numbers (m), got {discard!r}"
-            raise ConfigError(msg)
-        node_params = raw.get("node_params", {})
+        p = Params(raw, "mission", ConfigError)
+        seed = p.integer("seed", d.seed, low=0)
+        discard = p.raw("discard", list(d.discard))
+        if not isinstance(discard, list | tuple) or len(discard) != 3:
+            p.problem(f"mission/discard must be three numbers (m), got {discard!r}")
+            discard = d.discard
+        discard = tuple(
+            p.check_number(v, f"mission/discard[{i}]", d.discard[i], unit="m")
+            for i, v in enumerate(discard)
+        )
+        node_params = p.raw("node_params", {})
         if not isinstance(node_params, Mapping) or not all(
             isinstance(v, Mapping) for v in node_params.values()
         ):
-            msg = "mission key 'node_params' must map node names to parameter mappings"
-            raise ConfigError(msg)
-        return cls(
-            name=raw.get("name", d.name),
-            terrain=raw.get("terrain", d.terrain),
+            p.problem("mission/node_params must map node names to parameter mappings")
+            node_params = {}
+        config = cls(
+            name=p.string("name", d.name),
+            terrain=p.string("terrain", d.terrain),
             seed=seed,
-            x=_number(raw, "x", d.x, -3.0, 3.0),
-            y=_number(raw, "y", d.y, -3.0, 3.0),
-            expected_ground=_number(raw, "expected_ground", d.expected_ground, -1.0, 0.5),
-            approach_height=_number(raw, "approach_height", d.approach_height, 0.05, 1.0),
-            search_distance=_number(raw, "search_distance", d.search_distance, 0.01, 2.0),
-            trench_depth=_number(raw, "trench_depth", d.trench_depth, 0.001, 0.3),
-            trench_length=_number(raw, "trench_length", d.trench_length, 0.01, 1.0),
-            parallel=raw.get("parallel", d.parallel),
-            bottom_grind_depth=_number(raw, "bottom_grind_depth", d.bottom_grind_depth, 0.001, 0.3),
-            dig=dig,
-            dig_length=_number(raw, "dig_length", d.dig_length, 0.01, 1.0),
-            discard=(float(discard[0]), float(discard[1]), float(discard[2])),
-            terrain_forces=raw.get("terrain_forces", d.terrain_forces),
-            real_time_factor=_number(raw, "real_time_factor", d.real_time_factor, 0.0, 100.0),
-            step_timeout_s=_number(raw, "step_timeout_s", d.step_timeout_s, 1.0, 3600.0),
-            output_dir=raw.get("output_dir", d.output_dir),
-            renders=raw.get("renders", d.renders),
+            x=p.number("x", d.x, low=-3.0, high=3.0, unit="m"),
+            y=p.number("y", d.y, low=-3.0, high=3.0, unit="m"),
+            expected_ground=p.number(
+                "expected_ground", d.expected_ground, low=-1.0, high=0.5, unit="m"
+            ),
+            approach_height=p.number(
+                "approach_height", d.approach_height, low=0.05, high=1.0, unit="m"
+            ),
+            search_distance=p.number(
+                "search_distance", d.search_distance, low=0.01, high=2.0, unit="m"
+            ),
+            trench_depth=p.number("trench_depth", d.trench_depth, low=0.001, high=0.3, unit="m"),
+            trench_length=p.number("trench_length", d.trench_length, low=0.01, high=1.0, unit="m"),
+            parallel=p.boolean("parallel", d.parallel),
+            bottom_grind_depth=p.number(
+                "bottom_grind_depth", d.bottom_grind_depth, low=0.001, high=0.3, unit="m"
+            ),
+            dig=p.string("dig", d.dig, choices=("linear", "circular")),
+            dig_length=p.number("dig_length", d.dig_length, low=0.01, high=1.0, unit="m"),
+            discard=(discard[0], discard[1], discard[2]),
+            terrain_forces=p.string("terrain_forces", d.terrain_forces),
+            real_time_factor=p.number("real_time_factor", d.real_time_factor, low=0.0, high=100.0),
+            step_timeout_s=p.number(
+                "step_timeout_s", d.step_timeout_s, low=1.0, high=3600.0, unit="s"
+            ),
+            output_dir=p.string("output_dir", d.output_dir),
+            renders=p.boolean("renders", d.renders),
             node_params={str(k): dict(v) for k, v in node_params.items()},
         )
+        p.finish()
+        return config
 
     @property
     def terrain_spec(self) -> str:
