@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from ow_dem_bridge.api import ToolState
-from ow_dem_bridge.models import make_model
+from ow_dem_bridge.errors import ConfigError
+from ow_dem_bridge.remote_node import make_remote_model
 from ow_dem_bridge.table import load_table
 from ow_mission.testing import HarnessError
 
@@ -146,7 +147,7 @@ def test_grinder_wrench_turns_with_the_drag(bridge: Any) -> None:
 def test_sim_side_bridge_model_gets_the_bridge_wrench(bridge: Any, table_path: Path) -> None:
     import time
 
-    model = make_model("bridge", {})
+    model = make_remote_model({})
     pub = publisher("/sim/scoop_state")
     state = ToolState("scoop", 1, 0.02, 0.1, np.array([0.1, 0.0, 0.0]), np.zeros(3))
     expected = load_table(table_path).lookup("scoop", 1, 0.02, 0.1)
@@ -161,6 +162,19 @@ def test_sim_side_bridge_model_gets_the_bridge_wrench(bridge: Any, table_path: P
     assert np.allclose(force, expected[:3])
     above = ToolState("scoop", 1, 0.0, 0.1, np.zeros(3), np.zeros(3))
     assert np.allclose(model.wrench(above).force, 0.0)
+
+
+@pytest.mark.parametrize(
+    ("params", "pattern"),
+    [
+        ({"topic": {}}, r"unknown 'bridge' model parameter\(s\): topic"),
+        ({"topics": {"drill": "/x"}}, "'bridge' parameter 'topics' must map scoop/grinder"),
+        ({"topics": {"scoop": ""}}, "'bridge' parameter 'topics' must map scoop/grinder"),
+    ],
+)
+def test_remote_model_parameter_errors(params: dict[str, Any], pattern: str) -> None:
+    with pytest.raises(ConfigError, match=pattern):
+        make_remote_model(params)
 
 
 def test_bad_model_name_stops_the_node_with_a_clear_message(ros_stack: Any) -> None:

@@ -157,6 +157,7 @@ def test_none_model_is_zero() -> None:
             {},
             "unknown terrain-force model 'dem'; choose one of none, table, balovnev, bridge",
         ),
+        ("bridge", {}, r"'bridge' listens on ROS topics: the simulation node creates it"),
         ("table", {"pth": "x.csv"}, "unknown 'table' model parameter"),
         ("table", {"material": "sand"}, "'material' must be an integer"),
         ("table", {"pass_number": 1.5}, "'pass_number' must be an integer"),

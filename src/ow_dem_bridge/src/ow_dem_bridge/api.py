@@ -16,6 +16,14 @@ import numpy.typing as npt
 
 FloatArray = npt.NDArray[np.float64]
 
+#: Models :func:`ow_dem_bridge.models.make_model` builds in-process (no ROS).
+LOCAL_MODEL_NAMES: tuple[str, ...] = ("none", "table", "balovnev")
+#: The co-simulation model: the latest wrench the bridge node published for the tool. It listens
+#: on ROS topics, so the simulation node makes it (``remote_node.make_remote_model``).
+REMOTE_MODEL_NAME = "bridge"
+#: Every terrain-force model name (the simulation's ``~terrain_forces``).
+MODEL_NAMES: tuple[str, ...] = (*LOCAL_MODEL_NAMES, REMOTE_MODEL_NAME)
+
 
 @dataclass(frozen=True)
 class ToolState:

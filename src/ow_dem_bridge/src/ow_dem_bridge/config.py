@@ -6,8 +6,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from ow_dem_bridge.api import LOCAL_MODEL_NAMES
 from ow_dem_bridge.errors import ConfigError
-from ow_dem_bridge.models import MODEL_NAMES
 
 #: Default topics: the simulation publishes tool states, the bridge answers with wrenches.
 DEFAULT_TOOLS: dict[str, dict[str, str]] = {
@@ -58,9 +58,9 @@ class BridgeConfig:
             msg = f"unknown parameter(s) {names} (known: model, model_params, tools)"
             raise ConfigError(msg)
         model = params.get("model", "table")
-        served = [m for m in MODEL_NAMES if m != "bridge"]  # the bridge cannot ask itself
-        if model not in served:
-            msg = f"model: {model!r} is not one of {', '.join(served)}"
+        # The bridge serves the in-process models: the topic-backed one would ask itself.
+        if model not in LOCAL_MODEL_NAMES:
+            msg = f"model: {model!r} is not one of {', '.join(LOCAL_MODEL_NAMES)}"
             raise ConfigError(msg)
         model_params = params.get("model_params", {}) or {}
         if not isinstance(model_params, Mapping):

@@ -7,11 +7,13 @@ Names and parameters (``params`` keys; units in the docs of each model):
   YADE table), ``material`` (int; forces one material id instead of the state's, as the original
   plugin always used m=1; 0 or absent: use the state's), ``pass_number`` and ``table_tool`` (for
   OceanWATERS-format tables: which pass, which tool they describe; defaults 1 and "scoop").
-* ``"bridge"``: the co-simulation path: the latest wrench the bridge node published for the tool
-  (:mod:`ow_dem_bridge.remote`; needs rospy). ``topics``: tool -> wrench topic.
 * ``"balovnev"``: analytic model for the scoop (:mod:`ow_dem_bridge.balovnev`); any
   :class:`~ow_dem_bridge.balovnev.BalovnevParams` field as a key, plus ``grinder_table`` (CSV used
   for the grinder; default the shipped table; "" for no grinder force).
+
+The fourth name, ``"bridge"`` (the co-simulation path: the latest wrench the bridge node published
+for the tool), listens on ROS topics; the simulation node makes it with
+:func:`ow_dem_bridge.remote_node.make_remote_model`, and :func:`make_model` refuses it.
 """
 
 from __future__ import annotations
@@ -23,7 +25,14 @@ from typing import Any
 
 import numpy as np
 
-from ow_dem_bridge.api import FloatArray, TerrainForceModel, ToolState, Wrench
+from ow_dem_bridge.api import (
+    MODEL_NAMES,
+    REMOTE_MODEL_NAME,
+    FloatArray,
+    TerrainForceModel,
+    ToolState,
+    Wrench,
+)
 from ow_dem_bridge.balovnev import BalovnevModel, BalovnevParams
 from ow_dem_bridge.errors import ConfigError
 from ow_dem_bridge.table import ForceTable, load_table
@@ -34,8 +43,6 @@ DEFAULT_TABLE_PATH = Path(__file__).resolve().parents[2] / "data" / "default_tab
 GRINDER_MIN_LATERAL_SPEED = 1e-3
 #: m, l_grinder centre of mass in its link frame (the URDF's), the torque reference point.
 GRINDER_COM = (0.0, 0.0, 0.06)
-
-MODEL_NAMES: tuple[str, ...] = ("none", "table", "balovnev", "bridge")
 
 
 class ZeroModel:
@@ -113,14 +120,14 @@ def make_model(name: str, params: Mapping[str, Any] | None = None) -> TerrainFor
     """Build a terrain-force model by name (see the module docstring).
 
     Args:
-        name: "none", "table", "balovnev" or "bridge".
+        name: "none", "table" or "balovnev".
         params: the model's parameters.
 
     Returns:
         A model with ``wrench(state) -> Wrench``.
 
     Raises:
-        ConfigError: unknown name or bad parameter.
+        ConfigError: unknown name, the ROS-backed "bridge" model, or a bad parameter.
         TableError: a table cannot be loaded.
     """
     params = dict(params or {})
@@ -143,9 +150,11 @@ def make_model(name: str, params: Mapping[str, Any] | None = None) -> TerrainFor
             table = _table_from({"path": grinder_path or ""}, "path", DEFAULT_TABLE_PATH)
             grinder = TableModel(table)
         return BalovnevModel(BalovnevParams.from_dict(params), grinder)
-    if name == "bridge":
-        from ow_dem_bridge.remote import make_topic_model
-
-        return make_topic_model(params)
+    if name == REMOTE_MODEL_NAME:
+        msg = (
+            f"terrain-force model {name!r} listens on ROS topics: the simulation node creates it "
+            "(ow_dem_bridge.remote_node.make_remote_model), make_model does not"
+        )
+        raise ConfigError(msg)
     msg = f"unknown terrain-force model {name!r}; choose one of {', '.join(MODEL_NAMES)}"
     raise ConfigError(msg)
