@@ -20,26 +20,24 @@ import rospy
 from sensor_msgs.msg import JointState
 
 from ow_lander.config import PlannerConfig
-from ow_lander.conversions import height_map_from_msg
-from ow_lander.description import ARM_JOINTS, UNSTOWED
+from ow_lander.description import ARM_JOINTS, DEFAULT_GROUND_Z, UNSTOWED
 from ow_lander.model import ARM_LINKS, LanderModel
 from ow_lander.operations import DOCK_CENTRE, shoulder_yaw_for
 from ow_lander.planning import ArmPlanner, CheckContext
 from ow_lander.terrain import HeightMap
 from ow_lander.trajectory import read_csv
-from ow_msgs.msg import HeightMap as HeightMapMsg
+from ow_mission.testing import set_terrain
 from ow_msgs.srv import (
     DeliverSample,
     DigCircular,
     DigLinear,
     Grind,
     GuardedMove,
-    SetTerrain,
     Stow,
     Unstow,
 )
 
-GROUND = -0.155
+GROUND = DEFAULT_GROUND_Z
 #: rad, the arm at rest vs the trajectory's first row / last row.
 START_TOLERANCE = 0.02
 END_TOLERANCE = 0.03
@@ -99,45 +97,20 @@ class JointRecorder:
 
 
 @pytest.fixture(scope="module")
-def arm(ros_stack, tmp_path_factory):
+def arm(start_lander, tmp_path_factory):
     directory = tmp_path_factory.mktemp("trajectories")
-    ros_stack.start_node(
-        "ow_sim_bullet",
-        "sim",
-        params={"terrain": f"flat:{GROUND}", "real_time_factor": 0.0},
-        wait_for_topics=["/joint_states"],
-    )
-    ros_stack.start_node(
-        "ow_lander",
-        "arm_services",
-        params={"plan_and_execute": True, "trajectory_dir": str(directory)},
-        wait_for_services=["/arm/unstow"],
-    )
+    stack = start_lander(arm={"trajectory_dir": str(directory)})
     recorder = JointRecorder()
     rospy.wait_for_message("/joint_states", JointState, timeout=10)
     model = LanderModel()
-    return ros_stack, directory, recorder, model, ArmPlanner(model, PlannerConfig())
-
-
-def _fresh_terrain(stack) -> None:
-    """Flat, uncarved ground again: what a test's operation meets does not depend on which
-    tests ran before it on this module's simulation (xdist splits them differently each run)."""
-    reply = stack.service("/sim/set_terrain", SetTerrain)(terrain=f"flat:{GROUND}")
-    assert reply.success, reply.message
-    deadline = time.monotonic() + 10.0
-    while True:  # the latched /sim/terrain carries the new, flat map ...
-        msg = rospy.wait_for_message("/sim/terrain", HeightMapMsg, timeout=10)
-        if np.ptp(height_map_from_msg(msg).heights) == 0.0:
-            break
-        assert time.monotonic() < deadline, "/sim/terrain still shows the carved terrain"
-    time.sleep(0.2)  # ... and the arm services, subscribed to it too, have it as well
+    return stack, directory, recorder, model, ArmPlanner(model, PlannerConfig())
 
 
 def _run(arm, name, cls, **fields):
     """Call one service on fresh terrain; check the plan/execution invariants; return what
     tests look at."""
     stack, directory, recorder, model, planner = arm
-    _fresh_terrain(stack)
+    set_terrain(stack)
     before, response, samples, after = recorder.call(lambda: stack.service(name, cls)(**fields))
     assert response.success, response.message
     trajectory = read_csv(directory / response.trajectory_file.rsplit("/", 1)[1])

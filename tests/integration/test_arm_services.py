@@ -8,7 +8,7 @@ import pytest
 import rospy
 from sensor_msgs.msg import JointState
 
-from ow_lander.description import ARM_JOINTS, UNSTOWED
+from ow_lander.description import ARM_JOINTS, DEFAULT_GROUND_Z, UNSTOWED
 from ow_lander.model import LanderModel
 from ow_lander.trajectory import read_csv
 from ow_msgs.srv import (
@@ -61,12 +61,14 @@ GOOD = [
     (
         "/arm/grind",
         Grind,
-        dict(x=1.7, y=0.1, depth=0.04, length=0.3, parallel=False, ground_position=-0.155),
+        dict(
+            x=1.7, y=0.1, depth=0.04, length=0.3, parallel=False, ground_position=DEFAULT_GROUND_Z
+        ),
     ),
     (
         "/arm/dig_linear",
         DigLinear,
-        dict(x=1.7, y=0.0, depth=0.02, length=0.15, ground_position=-0.155),
+        dict(x=1.7, y=0.0, depth=0.02, length=0.15, ground_position=DEFAULT_GROUND_Z),
     ),
     ("/arm/deliver_sample", DeliverSample, dict(x=1.5, y=0.8, z=0.3)),
 ]
@@ -98,7 +100,7 @@ def test_grind_defaults_cut_at_depth_and_length(stack):
         q[model.arm_idx] = trajectory.positions[i]
         tips.append(model.position(q, "l_grinder_tip"))
     tips = np.array(tips)
-    assert np.allclose(tips[:, 2], -0.155 - 0.05, atol=0.01)
+    assert np.allclose(tips[:, 2], DEFAULT_GROUND_Z - 0.05, atol=0.01)
     assert np.linalg.norm(tips[-1, :2] - tips[0, :2]) == pytest.approx(0.6, abs=0.01)
 
 

@@ -26,10 +26,10 @@ import pytest
 
 from ow_dem_bridge.models import DEFAULT_TABLE_PATH
 from ow_dem_bridge.table import load_table
-from ow_lander.description import URDF_PATH
+from ow_lander.description import DEFAULT_GROUND_Z, URDF_PATH
 from ow_lander.model import LanderModel
 
-GROUND_Z = -0.155
+GROUND_Z = DEFAULT_GROUND_Z
 DIG = {"x": 1.6, "y": 0.0, "depth": 0.05, "length": 0.2, "ground_position": GROUND_Z}
 #: relative tolerance of the applied wrench against the table (acceptance criterion).
 WRENCH_RTOL = 0.05
@@ -58,7 +58,9 @@ class DigRecord:
             )
 
 
-def _record_dig(ros_stack: Any, terrain_forces: str, tool_contact: bool) -> DigRecord:
+def _record_dig(
+    ros_stack: Any, start_lander: Any, terrain_forces: str, tool_contact: bool
+) -> DigRecord:
     """Start a sim with ``terrain_forces`` (and rigid tool-terrain contact or not) and the arm
     services, unstow, dig; stop both."""
     import rospy
@@ -68,30 +70,16 @@ def _record_dig(ros_stack: Any, terrain_forces: str, tool_contact: bool) -> DigR
     from ow_msgs.msg import ToolState as ToolStateMsg
     from ow_msgs.srv import DigLinear, Unstow
 
-    started = [
-        ros_stack.start_node(
-            "ow_sim_bullet",
-            "sim",
-            params={
-                "terrain": f"flat:{GROUND_Z}",
-                "real_time_factor": 0.0,
-                "terrain_forces": terrain_forces,
-                "tool_contact": tool_contact,
-                "terrain_force_params": {},
-            },
-            wait_for_topics=[
-                "/sim/scoop_state",
-                "/sim/scoop_model_state",
-                "/sim/scoop_model_wrench",
-            ],
-        ),
-        ros_stack.start_node(
-            "ow_lander",
-            "arm_services",
-            params={"plan_and_execute": True},
-            wait_for_services=["/arm/dig_linear"],
-        ),
-    ]
+    start_lander(
+        sim={
+            "terrain_forces": terrain_forces,
+            "tool_contact": tool_contact,
+            "terrain_force_params": {},
+        },
+        arm_services=["/arm/dig_linear"],
+        sim_topics=["/sim/scoop_state", "/sim/scoop_model_state", "/sim/scoop_model_wrench"],
+    )
+    started = ros_stack.nodes[-2:]
     record = DigRecord()
 
     def on_state(msg: Any) -> None:
@@ -138,11 +126,11 @@ def _record_dig(ros_stack: Any, terrain_forces: str, tool_contact: bool) -> DigR
 
 
 @pytest.fixture(scope="module")
-def digs(ros_stack: Any) -> dict[str, DigRecord]:
+def digs(ros_stack: Any, start_lander: Any) -> dict[str, DigRecord]:
     return {
-        "table": _record_dig(ros_stack, "table", tool_contact=True),
-        "table_only": _record_dig(ros_stack, "table", tool_contact=False),
-        "none_only": _record_dig(ros_stack, "none", tool_contact=False),
+        "table": _record_dig(ros_stack, start_lander, "table", tool_contact=True),
+        "table_only": _record_dig(ros_stack, start_lander, "table", tool_contact=False),
+        "none_only": _record_dig(ros_stack, start_lander, "none", tool_contact=False),
     }
 
 

@@ -14,9 +14,11 @@ import pytest
 import rospy
 
 from ow_lander.conversions import height_map_from_msg
+from ow_lander.description import DEFAULT_GROUND_Z
+from ow_mission.testing import FLAT, set_terrain
 from ow_msgs.msg import GuardedMoveResult
 from ow_msgs.msg import HeightMap as HeightMapMsg
-from ow_msgs.srv import Grind, GuardedMove, SetTerrain, Unstow
+from ow_msgs.srv import Grind, GuardedMove
 from ow_sim_bullet.terrains import GRID_RESOLUTION, parse_terrain_spec
 
 TOLERANCE_M = 0.005
@@ -25,39 +27,19 @@ SLOPE = np.tan(np.radians(10.0))
 
 @pytest.fixture(scope="module")
 def slope_file(tmp_path_factory):
-    """A plane rising 10 degrees towards +y through z = -0.155 at y = 0 (a .npy height map on
-    the simulation's default file grid: centre (1.5, 0) m, 4 cm cells)."""
+    """A plane rising 10 degrees towards +y through the default ground height at y = 0 (a .npy
+    height map on the simulation's default file grid: centre (1.5, 0) m, 4 cm cells)."""
     n = 101
     y = (np.arange(n) - (n - 1) / 2) * GRID_RESOLUTION
-    heights = np.tile((-0.155 + SLOPE * y)[:, None], (1, n))
+    heights = np.tile((DEFAULT_GROUND_Z + SLOPE * y)[:, None], (1, n))
     path = tmp_path_factory.mktemp("terrain") / "slope.npy"
     np.save(path, heights)
     return path
 
 
 @pytest.fixture(scope="module")
-def stack(ros_stack):
-    ros_stack.start_node(
-        "ow_sim_bullet",
-        "sim",
-        params={"terrain": "flat:-0.10", "real_time_factor": 0.0},
-        wait_for_services=["/sim/set_terrain"],
-    )
-    ros_stack.start_node(
-        "ow_lander",
-        "arm_services",
-        params={"plan_and_execute": True},
-        wait_for_services=["/arm/guarded_move"],
-    )
-    return ros_stack
-
-
-def _fresh_terrain(stack, spec):
-    """Lift the arm clear, then switch the simulation's terrain."""
-    response = stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
-    assert response.success, response.message
-    terrain = stack.service("/sim/set_terrain", SetTerrain)(terrain=spec)
-    assert terrain.success, terrain.message
+def stack(start_lander):
+    return start_lander(terrain="flat:-0.10", arm_services=["/arm/guarded_move"], sim_topics=[])
 
 
 def _guarded_move(stack, x, y, z, search=0.5, normal=(0.0, 0.0, 1.0)):
@@ -80,9 +62,9 @@ def _guarded_move(stack, x, y, z, search=0.5, normal=(0.0, 0.0, 1.0)):
     return response, results
 
 
-@pytest.mark.parametrize("ground_z", [-0.10, -0.155, -0.20])
+@pytest.mark.parametrize("ground_z", [-0.10, DEFAULT_GROUND_Z, -0.20])
 def test_finds_flat_ground_at_several_heights(stack, ground_z):
-    _fresh_terrain(stack, f"flat:{ground_z}")
+    set_terrain(stack, lift_arm=True, spec=f"flat:{ground_z}")
     response, results = _guarded_move(stack, 1.7, 0.0, ground_z + 0.2)
     assert response.success, response.message
     assert response.ground_found
@@ -99,7 +81,7 @@ def test_finds_flat_ground_at_several_heights(stack, ground_z):
 
 @pytest.mark.parametrize(("spec", "x", "y"), [("europa:3", 1.6, 0.1), ("europa:7", 1.65, 0.0)])
 def test_finds_rough_ground(stack, spec, x, y):
-    _fresh_terrain(stack, spec)
+    set_terrain(stack, lift_arm=True, spec=spec)
     terrain = parse_terrain_spec(spec)
     response, results = _guarded_move(stack, x, y, float(terrain.height_at(x, y)) + 0.2)
     assert response.success, response.message
@@ -112,7 +94,7 @@ def test_finds_sloped_ground_along_its_normal(stack, slope_file):
     """On a 10 degree slope the user gives its normal: the scoop's bottom is turned against it
     and the descent runs along it (the paper's ``direction``)."""
     spec = f"file:{slope_file}"
-    _fresh_terrain(stack, spec)
+    set_terrain(stack, lift_arm=True, spec=spec)
     terrain = parse_terrain_spec(spec)
     normal = np.array([0.0, -SLOPE, 1.0]) / np.hypot(SLOPE, 1.0)
     x, y = 1.7, 0.1
@@ -125,7 +107,7 @@ def test_finds_sloped_ground_along_its_normal(stack, slope_file):
 
 
 def test_finds_the_bottom_of_a_trench_dug_earlier(stack):
-    _fresh_terrain(stack, "flat:-0.155")
+    set_terrain(stack, lift_arm=True, spec=FLAT)
     response, _ = _guarded_move(stack, 1.65, 0.0, 0.05)
     assert response.success, response.message
     ground = response.ground_position.z
@@ -147,7 +129,7 @@ def test_finds_the_bottom_of_a_trench_dug_earlier(stack):
 
 
 def test_no_ground_within_the_search_distance_is_a_failure(stack):
-    _fresh_terrain(stack, "flat:-0.4")
+    set_terrain(stack, lift_arm=True, spec="flat:-0.4")
     response, results = _guarded_move(stack, 1.7, 0.0, 0.1, search=0.1)
     assert not response.success
     assert "no ground within 0.10 m" in response.message

@@ -5,24 +5,18 @@ import pytest
 import rospy
 from geometry_msgs.msg import WrenchStamped
 
+from ow_lander.description import DEFAULT_GROUND_Z
 from ow_msgs.srv import GuardedMove, Unstow
 
-GROUND = -0.155
+GROUND = DEFAULT_GROUND_Z
 
 
 @pytest.fixture(scope="module")
-def stack(ros_stack):
-    ros_stack.start_node(
-        "ow_sim_bullet",
-        "sim",
-        params={"terrain": f"flat:{GROUND}", "real_time_factor": 0.0},
-        wait_for_topics=["/arm_end_effector_force_torque"],
-    )
-    ros_stack.start_node(
-        "ow_lander",
-        "arm_services",
-        params={"plan_and_execute": True, "execution": {"ground_detector": "force"}},
-        wait_for_services=["/arm/guarded_move"],
+def stack(start_lander):
+    ros_stack = start_lander(
+        arm={"execution": {"ground_detector": "force"}},
+        arm_services=["/arm/guarded_move"],
+        sim_topics=["/arm_end_effector_force_torque"],
     )
     response = ros_stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
     assert response.success, response.message

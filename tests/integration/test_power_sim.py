@@ -20,7 +20,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from ow_lander.description import UNSTOWED
+from ow_lander.description import DEFAULT_GROUND_Z, UNSTOWED
 from ow_lander.model import LanderModel
 from ow_msgs.msg import GuardedMoveResult, Power
 from ow_msgs.srv import GuardedMove, Unstow
@@ -28,7 +28,7 @@ from ow_power.energy import ArmEnergyModel
 from ow_power.model import integrate_j
 
 P0_W = 43.0
-GROUND_Z = -0.155
+GROUND_Z = DEFAULT_GROUND_Z
 #: rad, the arm reaching out low (scoop tip 22 cm above the ground) and lifted high (tip ~1.2 m
 #: up): only the shoulder and proximal pitch joints move between them.
 LOW = {**UNSTOWED, "j_shou_pitch": 1.0, "j_prox_pitch": -1.5707}
@@ -39,22 +39,11 @@ CONTACT_WINDOW_S = 0.3  # s (sim) after the reported contact in which the power 
 
 
 @pytest.fixture(scope="module")
-def stack(ros_stack):
-    ros_stack.start_node(
-        "ow_sim_bullet",
-        "sim",
-        params={"terrain": f"flat:{GROUND_Z}", "real_time_factor": 0.0},
-        wait_for_services=["/sim/set_terrain"],
-    )
+def stack(ros_stack, start_lander):
     ros_stack.start_node(
         "ow_power", "power", params={"auxiliary_power_w": P0_W}, wait_for_topics=["/power"]
     )
-    ros_stack.start_node(
-        "ow_lander",
-        "arm_services",
-        params={"plan_and_execute": True},
-        wait_for_services=["/arm/unstow", "/arm/guarded_move"],
-    )
+    start_lander(terrain=f"flat:{GROUND_Z}", arm_services=["/arm/unstow", "/arm/guarded_move"])
     return ros_stack
 
 

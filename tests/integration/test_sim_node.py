@@ -18,7 +18,14 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from ow_lander.description import SCOOP_ABOVE_GROUND, SCOOP_BELOW_GROUND, URDF_PATH
+from ow_lander.description import (
+    DEFAULT_GROUND_Z,
+    EUROPA_GRAVITY,
+    SCOOP_ABOVE_GROUND,
+    SCOOP_BELOW_GROUND,
+    URDF_PATH,
+)
+from ow_mission.testing import FLAT
 from ow_msgs.msg import HeightMap
 from ow_msgs.srv import SetPidGains, SetTerrain, StepSimulation
 
@@ -114,7 +121,7 @@ def sim(ros_stack):
     ros_stack.start_node(
         "ow_sim_bullet",
         "sim",
-        params={"real_time_factor": 0.0, "terrain": "flat:-0.155", "start_paused": True},
+        params={"real_time_factor": 0.0, "terrain": FLAT, "start_paused": True},
         wait_for_services=["/sim/step", "/sim/set_terrain"],
     )
     handles = Sim(ros_stack)
@@ -159,7 +166,7 @@ def test_outputs(fresh):
     )
     assert len(last.effort) == 9
     assert fresh.clock.take()[-1].clock.to_sec() == pytest.approx(end, abs=0.011)
-    assert fresh.tip_ground.take()[-1].point.z == pytest.approx(-0.155)
+    assert fresh.tip_ground.take()[-1].point.z == pytest.approx(DEFAULT_GROUND_Z)
     terrain = fresh.terrain.wait_for(lambda m: True)
     assert terrain.rows * terrain.cols == len(terrain.heights)
     buffer = tf2_ros.Buffer(debug=False)
@@ -205,7 +212,7 @@ def test_stowed_pose_holds_within_1_mrad_for_60_s_with_the_gravity_torque(fresh)
     assert np.max(np.abs(positions - positions[0])) < 1e-3
 
     model = pin.buildModelFromUrdf(str(URDF_PATH))
-    model.gravity.linear = np.array([0.0, 0.0, -1.315])
+    model.gravity.linear = np.array([0.0, 0.0, -EUROPA_GRAVITY])
     data = model.createData()
     last = messages[-1]
     position = by_name(last, "position")
@@ -254,7 +261,7 @@ def test_bad_input_gives_clear_errors_and_the_sim_keeps_running(fresh):
 
 
 def test_scoop_pushed_into_the_terrain_leaves_a_trench(fresh):
-    assert fresh.terrain_srv(terrain="flat:-0.155").success
+    assert fresh.terrain_srv(terrain=FLAT).success
     fresh.trajectory(
         [
             (8.0, SCOOP_ABOVE_GROUND),
@@ -265,7 +272,7 @@ def test_scoop_pushed_into_the_terrain_leaves_a_trench(fresh):
     )
     fresh.steps(1000)
     above = fresh.tip_ground.take()[-1]
-    assert above.point.z == pytest.approx(-0.155)
+    assert above.point.z == pytest.approx(DEFAULT_GROUND_Z)
     fresh.wrench.clear()
     fresh.steps(600)
     forces = [
@@ -281,4 +288,4 @@ def test_scoop_pushed_into_the_terrain_leaves_a_trench(fresh):
     # The trench stays (the arm, at rest within microns, does not carve any more).
     assert fresh.tip_ground.take()[-1].point.z == pytest.approx(lifted.point.z, abs=1e-4)
     terrain = fresh.terrain.wait_for(lambda m: min(m.heights) < -0.175, timeout_s=10.0)
-    assert max(terrain.heights) == pytest.approx(-0.155)
+    assert max(terrain.heights) == pytest.approx(DEFAULT_GROUND_Z)

@@ -27,6 +27,12 @@ Fixtures:
     ros_stack (module): a :class:`RosStack` on that master; every node it started is stopped
         (SIGINT, then SIGKILL of its whole process group) when the module ends, and the private
         parameters it set are deleted.
+    start_lander (module): a function starting the simulation (as fast as it runs, on flat
+        ground at the default height unless told otherwise) and the arm services (plan and
+        execute) on ``ros_stack``; keyword arguments give each node more parameters.
+
+:func:`set_terrain` gives the running simulation a new terrain and waits until the arm services
+have it: call it at the start of a test whose result must not depend on what earlier tests carved.
 
 Each node's output goes to ``<log_dir>/<name>.log``; a node that dies or never offers its
 services raises :class:`HarnessError` with the end of that log.
@@ -35,13 +41,29 @@ services raises :class:`HarnessError` with the end of that log.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from typing import Any
 
 import pytest
 
+from ow_lander.description import DEFAULT_GROUND_Z
 from ow_mission.stack import HarnessError, NodeProcess, RosMaster, RosStack, private_master
 
-__all__ = ["HarnessError", "NodeProcess", "RosMaster", "RosStack", "ros_master", "ros_stack"]
+__all__ = [
+    "FLAT",
+    "HarnessError",
+    "NodeProcess",
+    "RosMaster",
+    "RosStack",
+    "ros_master",
+    "ros_stack",
+    "set_terrain",
+    "start_lander",
+]
+
+#: The terrain the lander starts on unless a test asks for another.
+FLAT = f"flat:{DEFAULT_GROUND_Z}"
 
 
 @pytest.fixture(scope="session")
@@ -71,3 +93,72 @@ def ros_stack(ros_master: RosMaster) -> Iterator[RosStack]:
         yield stack
     finally:
         stack.shutdown()
+
+
+@pytest.fixture(scope="module")
+def start_lander(ros_stack: RosStack) -> Callable[..., RosStack]:
+    """A function starting the simulation and the arm services on this module's stack.
+
+    Its keyword arguments: ``terrain`` (spec, default :data:`FLAT`); ``sim`` and ``arm`` (more
+    private parameters of each node; the sim runs as fast as it can and the arm services plan
+    and execute unless these say otherwise); ``arm_services`` (services to wait for, default
+    ``/arm/unstow``); ``sim_topics`` (topics of the sim to wait for, default ``/joint_states``).
+    It returns the stack.
+    """
+
+    def start(
+        terrain: str = FLAT,
+        sim: Mapping[str, Any] | None = None,
+        arm: Mapping[str, Any] | None = None,
+        arm_services: Iterable[str] = ("/arm/unstow",),
+        sim_topics: Iterable[str] = ("/joint_states",),
+    ) -> RosStack:
+        ros_stack.start_node(
+            "ow_sim_bullet",
+            "sim",
+            params={"terrain": terrain, "real_time_factor": 0.0, **(sim or {})},
+            wait_for_services=["/sim/set_terrain"],
+            wait_for_topics=list(sim_topics),
+        )
+        ros_stack.start_node(
+            "ow_lander",
+            "arm_services",
+            params={"plan_and_execute": True, **(arm or {})},
+            wait_for_services=list(arm_services),
+        )
+        return ros_stack
+
+    return start
+
+
+def set_terrain(stack: RosStack, spec: str = FLAT, lift_arm: bool = False) -> None:
+    """Give the running simulation a new terrain and wait until the arm services have it.
+
+    Args:
+        stack: the running stack.
+        spec: the terrain spec (``flat:<z m>``, ``europa:<seed>``, ``file:<path>``).
+        lift_arm: unstow first, so that no tool is under the new surface.
+
+    Raises:
+        AssertionError: a service refused, or the new flat map did not arrive within 10 s.
+    """
+    import numpy as np
+    import rospy
+
+    from ow_lander.conversions import height_map_from_msg
+    from ow_msgs.msg import HeightMap as HeightMapMsg
+    from ow_msgs.srv import SetTerrain, Unstow
+
+    if lift_arm:
+        response = stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
+        assert response.success, response.message
+    reply = stack.service("/sim/set_terrain", SetTerrain)(terrain=spec)
+    assert reply.success, reply.message
+    if spec.startswith("flat:"):
+        deadline = time.monotonic() + 10.0
+        while True:  # the latched /sim/terrain carries the new, flat map ...
+            msg = rospy.wait_for_message("/sim/terrain", HeightMapMsg, timeout=10)
+            if np.ptp(height_map_from_msg(msg).heights) == 0.0:
+                break
+            assert time.monotonic() < deadline, "/sim/terrain still shows the carved terrain"
+        time.sleep(0.2)  # ... and the arm services, subscribed to it too, have it as well

@@ -1,0 +1,202 @@
+"""The workspace's shape, checked from its source: an acyclic graph of packages and of modules
+inside each, every imported ROS package declared in package.xml, and rospy only at the edge.
+
+Every import counts, also those inside functions: a lazy import is still a dependency.
+"""
+
+from __future__ import annotations
+
+import ast
+import os
+import xml.etree.ElementTree as ET
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+import rospkg
+
+SRC = Path(__file__).resolve().parents[2] / "src"
+
+#: Modules that may import rospy besides ``*_node.py``: the private-stack harness, which makes
+#: the calling process (a test, a script, the mission) a ROS client.
+ROS_CLIENT_MODULES = {"ow_mission.stack", "ow_mission.testing"}
+
+
+@dataclass(frozen=True)
+class Module:
+    """One Python module of a catkin package and the modules it imports."""
+
+    package: str
+    name: str
+    path: Path
+    imports: frozenset[str]
+
+
+def _imports(tree: ast.AST) -> set[str]:
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module)
+            names.update(f"{node.module}.{alias.name}" for alias in node.names)
+    return names
+
+
+def workspace_modules(src: Path = SRC) -> list[Module]:
+    """Every module under ``src/<package>/src/<python package>/`` and ``src/<package>/nodes/``."""
+    modules = []
+    for package_xml in sorted(src.glob("*/package.xml")):
+        package_dir = package_xml.parent
+        files = [*package_dir.glob("src/*/*.py"), *package_dir.glob("nodes/*")]
+        for path in sorted(files):
+            if path.parent.name == "nodes":
+                name = f"{package_dir.name}.nodes.{path.name}"
+            else:
+                name = f"{path.parent.name}.{path.stem}"
+            tree = ast.parse(path.read_text(), filename=str(path))
+            modules.append(Module(package_dir.name, name, path, frozenset(_imports(tree))))
+    return modules
+
+
+def find_cycle(graph: Mapping[str, Iterable[str]]) -> list[str] | None:
+    """A cycle of ``graph`` (node -> successors) as a path ``[a, b, ..., a]``, or None."""
+    state: dict[str, int] = {}  # 1: on the current path, 2: done
+    path: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        path.append(node)
+        for succ in sorted(graph.get(node, ())):
+            if state.get(succ) == 1:
+                return [*path[path.index(succ) :], succ]
+            if succ not in state:
+                found = visit(succ)
+                if found:
+                    return found
+        path.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph):
+        if node not in state:
+            found = visit(node)
+            if found:
+                return found
+    return None
+
+
+def package_graph(modules: list[Module]) -> dict[str, set[str]]:
+    """package -> the other workspace packages its modules import."""
+    packages = {m.package for m in modules}
+    graph: dict[str, set[str]] = {p: set() for p in packages}
+    for module in modules:
+        for name in module.imports:
+            top = name.split(".")[0]
+            if top in packages and top != module.package:
+                graph[module.package].add(top)
+    return graph
+
+
+def module_graph(modules: list[Module]) -> dict[str, set[str]]:
+    """module -> the modules of its own package it imports."""
+    names = {m.name for m in modules}
+    return {
+        m.name: {
+            n for n in m.imports if n in names and n != m.name and n.split(".")[0] == m.package
+        }
+        for m in modules
+    }
+
+
+def declared_dependencies(package_xml: Path) -> set[str]:
+    """Names in ``<depend>``, ``<exec_depend>`` and ``<build_depend>`` of a package.xml."""
+    root = ET.parse(package_xml).getroot()
+    tags = ("depend", "exec_depend", "build_depend", "build_export_depend")
+    return {e.text.strip() for tag in tags for e in root.iter(tag) if e.text}
+
+
+@pytest.fixture(scope="module")
+def modules() -> list[Module]:
+    return workspace_modules()
+
+
+@pytest.fixture(scope="module")
+def ros_packages() -> set[str]:
+    """Every ROS package installed here (Debian's and the workspace's)."""
+    if "ROS_PACKAGE_PATH" not in os.environ:
+        pytest.fail("ROS_PACKAGE_PATH is not set: run the tests through env.sh (make test)")
+    return set(rospkg.RosPack().list())
+
+
+# ----------------------------------------------------------------------- the checker itself
+def test_find_cycle_finds_a_cycle_and_only_a_cycle():
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": set()}) is None
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"x": {"x"}}) == ["x", "x"]
+
+
+def test_the_checks_see_lazy_imports_and_undeclared_packages(tmp_path: Path):
+    package = tmp_path / "ow_demo"
+    (package / "src" / "ow_demo").mkdir(parents=True)
+    (package / "package.xml").write_text(
+        "<package format='3'><name>ow_demo</name><exec_depend>std_msgs</exec_depend></package>"
+    )
+    (package / "src" / "ow_demo" / "core.py").write_text(
+        "def f():\n    import rospy\n    from ow_demo.other import g\n"
+    )
+    (package / "src" / "ow_demo" / "other.py").write_text("from ow_demo import core\n")
+    (package / "src" / "ow_demo" / "core_node.py").write_text(
+        "from geometry_msgs.msg import Pose\n"
+    )
+    found = workspace_modules(tmp_path)
+    assert {m.name for m in found} == {"ow_demo.core", "ow_demo.other", "ow_demo.core_node"}
+    core = next(m for m in found if m.name == "ow_demo.core")
+    assert "rospy" in core.imports
+    other = next(m for m in found if m.name == "ow_demo.other")
+    assert "ow_demo.core" in other.imports
+    assert find_cycle(module_graph(found)) == ["ow_demo.core", "ow_demo.other", "ow_demo.core"]
+    assert declared_dependencies(package / "package.xml") == {"std_msgs"}
+
+
+# --------------------------------------------------------------------------- the workspace
+def test_the_package_graph_is_acyclic(modules):
+    graph = package_graph(modules)
+    assert find_cycle(graph) is None, f"package import cycle: {' -> '.join(find_cycle(graph))}"
+
+
+def test_no_package_has_a_module_cycle(modules):
+    graph = module_graph(modules)
+    cycle = find_cycle(graph)
+    assert cycle is None, f"module import cycle: {' -> '.join(cycle or [])}"
+
+
+def test_every_imported_ros_package_is_declared(modules, ros_packages):
+    missing: dict[str, set[str]] = {}
+    for module in modules:
+        declared = declared_dependencies(SRC / module.package / "package.xml")
+        for name in module.imports:
+            top = name.split(".")[0]
+            if top in ros_packages and top != module.package and top not in declared:
+                missing.setdefault(module.package, set()).add(f"{top} (by {module.name})")
+    assert not missing, f"imports not declared in package.xml: {missing}"
+
+
+def test_rospy_only_in_node_modules(modules):
+    offenders = [
+        m.name
+        for m in modules
+        if any(n == "rospy" or n.startswith("rospy.") for n in m.imports)
+        and not m.name.endswith("_node")
+        and ".nodes." not in m.name
+        and m.name not in ROS_CLIENT_MODULES
+    ]
+    assert not offenders, f"rospy imported outside node modules: {offenders}"
+
+
+def test_every_package_declares_its_workspace_dependencies(modules):
+    graph = package_graph(modules)
+    for package, uses in graph.items():
+        declared = declared_dependencies(SRC / package / "package.xml")
+        assert uses <= declared, f"{package} imports {sorted(uses - declared)} undeclared"
