@@ -1,24 +1,46 @@
 """Configuration of the arm services, validated from the node's private parameters.
 
 ``ArmServicesConfig.from_dict(rospy.get_param("~"))`` is the only place parameters enter; every
-other module receives the frozen dataclasses below. Missing keys keep their defaults, unknown keys
-and bad values raise :class:`~ow_lander.errors.ConfigError` naming the key.
-``config/arm_services.yaml`` lists every key with its unit.
+other module receives the frozen dataclasses below. Missing keys keep their defaults; unknown keys
+and bad values are collected by :class:`~ow_lander.params.Params` and raised together as one
+:class:`~ow_lander.errors.ConfigError` naming each key (a misspelt key gets the nearest known one).
+:data:`CONFIG_FILE` lists every key with its unit. Each attribute's range is the ``metadata`` of
+its field (:data:`POSITIVE`, ...): the keyword arguments of the :class:`Params` read.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields
+from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
-from ow_lander.description import ARM_JOINTS
+from ow_lander.description import ARM_JOINTS, DEFAULT_GROUND_Z
 from ow_lander.errors import ConfigError
+from ow_lander.params import Params
+
+#: The shipped parameter file; its ``arm_services:`` section is the node's private namespace.
+CONFIG_FILE = Path(__file__).resolve().parents[2] / "config" / "arm_services.yaml"
 
 #: rad/s^2, default acceleration limit of every arm joint (OceanWATERS had none; the PID
 #: position controllers track a trapezoid with this ramp well).
 DEFAULT_ACCELERATION = 0.2
+
+#: Values of ``execution/interface``.
+EXECUTION_INTERFACES = ("trajectory", "position_controllers")
+#: Values of ``execution/ground_detector``.
+GROUND_DETECTORS = ("velocity", "force")
+
+#: Ranges of a field (its ``metadata``): the keyword arguments of its :class:`Params` read.
+POSITIVE: Mapping[str, Any] = MappingProxyType({"low": 0.0, "low_inclusive": False})
+NON_NEGATIVE: Mapping[str, Any] = MappingProxyType({"low": 0.0})
+AT_LEAST_ONE: Mapping[str, Any] = MappingProxyType({"low": 1})
+SCALE: Mapping[str, Any] = MappingProxyType({"low": 0.0, "low_inclusive": False, "high": 1.0})
+
+
+def _choices(*values: str) -> Mapping[str, Any]:
+    return MappingProxyType({"choices": values})
 
 
 @dataclass(frozen=True)
@@ -48,28 +70,28 @@ class PlannerConfig:
         connect_time_limit_s: s (wall), time cap of the RRTConnect feasibility search tried
             when RRT* found nothing within its caps (its path is then shortened by the same
             objective); 0 disables it.
-        seed: OMPL random seed; the same request and state give the same plan.
+        seed: OMPL random seed (> 0); the same request and state give the same plan.
         path_length_weight: J/rad, weight of joint-space path length in the work objective.
         ik_restarts: random restarts of IK for free-space goals (Cartesian steps use none).
     """
 
-    joint_resolution_rad: float = 0.01
-    cartesian_step_m: float = 0.01
-    max_joint_jump_rad: float = 0.15
-    terrain_margin_m: float = 0.0
-    rrt_range_rad: float = 0.6
-    rrt_goal_bias: float = 0.1
-    rrt_rewire_factor: float = 0.01
-    rrt_check_resolution_rad: float = 0.04
-    rrt_max_iterations: int = 400
-    rrt_improve_iterations: int = 100
-    rrt_time_limit_s: float = 5.0
-    rrt_cost_threshold_factor: float = 1.5
-    rrt_attempts: int = 1
+    joint_resolution_rad: float = field(default=0.01, metadata=POSITIVE)
+    cartesian_step_m: float = field(default=0.01, metadata=POSITIVE)
+    max_joint_jump_rad: float = field(default=0.15, metadata=POSITIVE)
+    terrain_margin_m: float = field(default=0.0, metadata=NON_NEGATIVE)
+    rrt_range_rad: float = field(default=0.6, metadata=POSITIVE)
+    rrt_goal_bias: float = field(default=0.1, metadata={"low": 0.0, "high": 1.0})
+    rrt_rewire_factor: float = field(default=0.01, metadata=POSITIVE)
+    rrt_check_resolution_rad: float = field(default=0.04, metadata=POSITIVE)
+    rrt_max_iterations: int = field(default=400, metadata=AT_LEAST_ONE)
+    rrt_improve_iterations: int = field(default=100, metadata=AT_LEAST_ONE)
+    rrt_time_limit_s: float = field(default=5.0, metadata=POSITIVE)
+    rrt_cost_threshold_factor: float = field(default=1.5, metadata=POSITIVE)
+    rrt_attempts: int = field(default=1, metadata=AT_LEAST_ONE)
     connect_time_limit_s: float = 5.0
-    seed: int = 42
-    path_length_weight: float = 0.05
-    ik_restarts: int = 40
+    seed: int = field(default=42, metadata=NON_NEGATIVE)
+    path_length_weight: float = field(default=0.05, metadata=NON_NEGATIVE)
+    ik_restarts: int = field(default=40, metadata=NON_NEGATIVE)
 
 
 @dataclass(frozen=True)
@@ -86,13 +108,13 @@ class TimingConfig:
         sample_period_s: s, time between rows of a trajectory file.
     """
 
-    velocity_scale: float = 1.0
-    guarded_velocity_scale: float = 0.25
-    dig_velocity_scale: float = 0.5
+    velocity_scale: float = field(default=1.0, metadata=SCALE)
+    guarded_velocity_scale: float = field(default=0.25, metadata=SCALE)
+    dig_velocity_scale: float = field(default=0.5, metadata=SCALE)
     acceleration_limits: Mapping[str, float] = field(
         default_factory=lambda: dict.fromkeys(ARM_JOINTS, DEFAULT_ACCELERATION)
     )
-    sample_period_s: float = 0.1
+    sample_period_s: float = field(default=0.1, metadata=POSITIVE)
 
 
 @dataclass(frozen=True)
@@ -131,20 +153,22 @@ class ExecutionConfig:
         joint_state_timeout_s: s (wall), how long to wait for /joint_states before refusing.
     """
 
-    interface: str = "trajectory"
-    start_delay_s: float = 0.05
-    delivery_wait_s: float = 0.1
-    service_wait_s: float = 5.0
-    command_rate_hz: float = 50.0
-    goal_tolerance_rad: float = 0.02
-    max_tracking_error_rad: float = 0.3
-    settle_timeout_s: float = 10.0
-    timeout_factor: float = 1.5
-    guarded_settle_s: float = 2.0
-    ground_detector: str = "velocity"
-    ground_relative_tolerance: float = 0.3
-    ground_force_threshold_n: float = 10.0
-    joint_state_timeout_s: float = 5.0
+    interface: str = field(default="trajectory", metadata=_choices(*EXECUTION_INTERFACES))
+    start_delay_s: float = field(default=0.05, metadata=NON_NEGATIVE)
+    delivery_wait_s: float = field(default=0.1, metadata=NON_NEGATIVE)
+    service_wait_s: float = field(default=5.0, metadata=NON_NEGATIVE)
+    command_rate_hz: float = field(default=50.0, metadata=POSITIVE)
+    goal_tolerance_rad: float = field(default=0.02, metadata=POSITIVE)
+    max_tracking_error_rad: float = field(default=0.3, metadata=POSITIVE)
+    settle_timeout_s: float = field(default=10.0, metadata=POSITIVE)
+    timeout_factor: float = field(default=1.5, metadata=POSITIVE)
+    guarded_settle_s: float = field(default=2.0, metadata=NON_NEGATIVE)
+    ground_detector: str = field(default="velocity", metadata=_choices(*GROUND_DETECTORS))
+    ground_relative_tolerance: float = field(
+        default=0.3, metadata={"low": 0.0, "high": 1.0, "high_inclusive": False}
+    )
+    ground_force_threshold_n: float = field(default=10.0, metadata=POSITIVE)
+    joint_state_timeout_s: float = field(default=5.0, metadata=POSITIVE)
 
 
 @dataclass(frozen=True)
@@ -165,7 +189,7 @@ class ArmServicesConfig:
 
     trajectory_dir: str = ""
     plan_and_execute: bool = False
-    fallback_ground_z: float = -0.155
+    fallback_ground_z: float = DEFAULT_GROUND_Z
     terrain_wait_s: float = 2.0
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     timing: TimingConfig = field(default_factory=TimingConfig)
@@ -176,149 +200,49 @@ class ArmServicesConfig:
         """Validate a parameter dictionary (the node's ``~`` namespace).
 
         Raises:
-            ConfigError: unknown key, wrong type or out-of-range value (the message names it).
+            ConfigError: unknown keys, wrong types or out-of-range values, every one named in
+                the one message.
         """
-        values = dict(values)
-        planner = _section(PlannerConfig, values.pop("planner", {}), "planner")
-        timing_values = dict(_mapping(values.pop("timing", {}), "timing"))
-        accel = _acceleration_limits(timing_values.pop("acceleration_limits", {}))
-        timing = _section(TimingConfig, timing_values, "timing", acceleration_limits=accel)
-        execution = _section(ExecutionConfig, values.pop("execution", {}), "execution")
-        top = _section(cls, values, "", planner=planner, timing=timing, execution=execution)
-        _check_ranges(top)
-        return top
-
-
-#: Values of ``execution/interface``.
-EXECUTION_INTERFACES = ("trajectory", "position_controllers")
-
-_NESTED = {"planner", "timing", "execution", "acceleration_limits"}
-
-
-def _mapping(value: Any, key: str) -> Mapping[str, Any]:
-    if not isinstance(value, Mapping):
-        msg = f"parameter {key!r} must be a mapping, got {value!r}"
-        raise ConfigError(msg)
-    return value
-
-
-def _acceleration_limits(value: Any) -> dict[str, float]:
-    limits = dict.fromkeys(ARM_JOINTS, DEFAULT_ACCELERATION)
-    for joint, limit in _mapping(value, "timing/acceleration_limits").items():
-        key = f"timing/acceleration_limits/{joint}"
-        if joint not in ARM_JOINTS:
-            msg = f"parameter {key!r}: unknown arm joint (arm joints: {', '.join(ARM_JOINTS)})"
-            raise ConfigError(msg)
-        limits[joint] = _positive(_number(limit, key, float), key)
-    return limits
-
-
-def _section(cls: Any, values: Any, prefix: str, **given: Any) -> Any:
-    values = _mapping(values, prefix or "~")
-    kwargs: dict[str, Any] = dict(given)
-    known = {f.name: f for f in fields(cls)}
-    for key, value in values.items():
-        name = f"{prefix}/{key}" if prefix else key
-        if key not in known or key in _NESTED:
-            msg = f"unknown parameter {name!r}; known: {', '.join(sorted(known))}"
-            raise ConfigError(msg)
-        kwargs[key] = _number(value, name, type(known[key].default))
-    return cls(**kwargs)
-
-
-def _number(value: Any, key: str, kind: type) -> Any:
-    if kind is bool:
-        if not isinstance(value, bool):
-            msg = f"parameter {key!r} must be true or false, got {value!r}"
-            raise ConfigError(msg)
-        return value
-    if kind is str:
-        if not isinstance(value, str):
-            msg = f"parameter {key!r} must be a string, got {value!r}"
-            raise ConfigError(msg)
-        return value
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        msg = f"parameter {key!r} must be a number, got {value!r}"
-        raise ConfigError(msg)
-    if kind is int:
-        if int(value) != value:
-            msg = f"parameter {key!r} must be an integer, got {value!r}"
-            raise ConfigError(msg)
-        return int(value)
-    if not math.isfinite(value):
-        msg = f"parameter {key!r} must be finite, got {value!r}"
-        raise ConfigError(msg)
-    return float(value)
-
-
-def _positive(value: float, key: str) -> float:
-    if value <= 0:
-        msg = f"parameter {key!r} must be > 0, got {value}"
-        raise ConfigError(msg)
-    return value
-
-
-def _check_ranges(config: ArmServicesConfig) -> None:
-    if config.execution.interface not in EXECUTION_INTERFACES:
-        msg = (
-            f"parameter 'execution/interface' must be one of {', '.join(EXECUTION_INTERFACES)}, "
-            f"got {config.execution.interface!r}"
+        p = Params(values, "arm_services", ConfigError)
+        planner = _read(PlannerConfig, p.section("planner"))
+        if planner.seed == 0:
+            p.problem(f"{p.name('planner/seed')} must be > 0 (OMPL treats 0 as 'no seed')")
+        timing = p.section("timing")
+        accelerations = timing.section("acceleration_limits")
+        limits = {j: accelerations.positive(j, DEFAULT_ACCELERATION, "rad/s^2") for j in ARM_JOINTS}
+        accelerations.check_unknown()
+        config = _read(
+            cls,
+            p,
+            unknown=False,  # finish() checks the top level
+            planner=planner,
+            timing=_read(TimingConfig, timing, acceleration_limits=limits),
+            execution=_read(ExecutionConfig, p.section("execution")),
         )
-        raise ConfigError(msg)
-    positive = {
-        "planner/joint_resolution_rad": config.planner.joint_resolution_rad,
-        "planner/cartesian_step_m": config.planner.cartesian_step_m,
-        "planner/max_joint_jump_rad": config.planner.max_joint_jump_rad,
-        "planner/rrt_range_rad": config.planner.rrt_range_rad,
-        "planner/rrt_rewire_factor": config.planner.rrt_rewire_factor,
-        "planner/rrt_check_resolution_rad": config.planner.rrt_check_resolution_rad,
-        "planner/rrt_max_iterations": config.planner.rrt_max_iterations,
-        "planner/rrt_improve_iterations": config.planner.rrt_improve_iterations,
-        "planner/rrt_time_limit_s": config.planner.rrt_time_limit_s,
-        "planner/rrt_cost_threshold_factor": config.planner.rrt_cost_threshold_factor,
-        "planner/rrt_attempts": config.planner.rrt_attempts,
-        "timing/sample_period_s": config.timing.sample_period_s,
-        "execution/command_rate_hz": config.execution.command_rate_hz,
-        "execution/goal_tolerance_rad": config.execution.goal_tolerance_rad,
-        "execution/max_tracking_error_rad": config.execution.max_tracking_error_rad,
-        "execution/settle_timeout_s": config.execution.settle_timeout_s,
-        "execution/timeout_factor": config.execution.timeout_factor,
-        "execution/joint_state_timeout_s": config.execution.joint_state_timeout_s,
-        "execution/ground_force_threshold_n": config.execution.ground_force_threshold_n,
-    }
-    for key, value in positive.items():
-        _positive(value, key)
-    non_negative = {
-        "planner/terrain_margin_m": config.planner.terrain_margin_m,
-        "planner/seed": config.planner.seed,
-        "planner/path_length_weight": config.planner.path_length_weight,
-        "planner/ik_restarts": config.planner.ik_restarts,
-        "execution/guarded_settle_s": config.execution.guarded_settle_s,
-        "execution/start_delay_s": config.execution.start_delay_s,
-        "execution/delivery_wait_s": config.execution.delivery_wait_s,
-        "execution/service_wait_s": config.execution.service_wait_s,
-    }
-    for key, value in non_negative.items():
-        if value < 0:
-            msg = f"parameter {key!r} must be >= 0, got {value}"
-            raise ConfigError(msg)
-    if config.planner.seed == 0:
-        msg = "parameter 'planner/seed' must be > 0 (OMPL treats 0 as 'no seed')"
-        raise ConfigError(msg)
-    if config.execution.ground_detector not in ("velocity", "force"):
-        detector = config.execution.ground_detector
-        msg = f"parameter 'execution/ground_detector' must be velocity or force, got {detector!r}"
-        raise ConfigError(msg)
-    if not 0 <= config.execution.ground_relative_tolerance < 1:
-        value = config.execution.ground_relative_tolerance
-        msg = f"parameter 'execution/ground_relative_tolerance' must be in [0, 1), got {value}"
-        raise ConfigError(msg)
-    for key in ("velocity_scale", "guarded_velocity_scale", "dig_velocity_scale"):
-        value = getattr(config.timing, key)
-        if not 0 < value <= 1:
-            msg = f"parameter 'timing/{key}' must be in (0, 1], got {value}"
-            raise ConfigError(msg)
-    if not 0 <= config.planner.rrt_goal_bias <= 1:
-        bias = config.planner.rrt_goal_bias
-        msg = f"parameter 'planner/rrt_goal_bias' must be in [0, 1], got {bias}"
-        raise ConfigError(msg)
+        p.finish()
+        return config
+
+
+def _read(cls: Any, p: Params, unknown: bool = True, **given: Any) -> Any:
+    """An instance of the dataclass ``cls`` from ``p``: each field not ``given`` read by the
+    type of its default within the range of its metadata; then, with ``unknown``, the keys of
+    ``p`` that are no field are recorded as problems."""
+    values = dict(given)
+    for f in fields(cls):
+        if f.name in given:
+            continue
+        default = f.default
+        if default is MISSING:
+            msg = f"{cls.__name__}.{f.name} has no default to read it by"
+            raise TypeError(msg)
+        if isinstance(default, bool):
+            values[f.name] = p.boolean(f.name, default)
+        elif isinstance(default, str):
+            values[f.name] = p.string(f.name, default, f.metadata.get("choices"))
+        elif isinstance(default, int):
+            values[f.name] = p.integer(f.name, default, **f.metadata)
+        else:
+            values[f.name] = p.number(f.name, default, **f.metadata)
+    if unknown:
+        p.check_unknown()
+    return cls(**values)
