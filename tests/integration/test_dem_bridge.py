@@ -178,7 +178,7 @@ def test_remote_model_parameter_errors(params: dict[str, Any], pattern: str) -> 
 
 
 def test_bad_model_name_stops_the_node_with_a_clear_message(ros_stack: Any) -> None:
-    with pytest.raises(HarnessError, match=r"model: 'dem' is not one of none, table, balovnev"):
+    with pytest.raises(HarnessError, match=r"model = 'dem' is not one of none, table, balovnev"):
         ros_stack.start_node(
             "ow_dem_bridge",
             "dem_bridge",

@@ -8,11 +8,13 @@ from typing import Any
 
 import numpy as np
 import pytest
+import yaml
 
-from ow_dem_bridge.config import BridgeConfig
+from ow_dem_bridge.config import CONFIG_FILE, BridgeConfig
 from ow_dem_bridge.conversions import quaternion_matrix, tool_state_from_msg
 from ow_dem_bridge.errors import ConfigError, GeometryError
 from ow_dem_bridge.geometry import load_tool
+from ow_dem_bridge.models import TableModel, make_model
 from ow_lander.description import URDF_PATH
 
 
@@ -67,20 +69,49 @@ def test_bridge_config_defaults_and_overrides() -> None:
     assert [(t.tool, t.wrench_topic) for t in one.tools] == [("scoop", "/x")]
 
 
+def test_the_shipped_config_file_is_valid_and_holds_the_defaults() -> None:
+    config = BridgeConfig.from_dict(yaml.safe_load(CONFIG_FILE.read_text()))
+    assert config.model == "table"
+    assert config.tools == BridgeConfig().tools
+    # Its model parameters are the model's defaults: the shipped table, the state's material.
+    assert config.model_params == {
+        "path": "",
+        "material": 0,
+        "pass_number": 1,
+        "table_tool": "scoop",
+    }
+    model = make_model(config.model, config.model_params)
+    assert isinstance(model, TableModel)
+    assert model.material is None
+
+
 @pytest.mark.parametrize(
     ("params", "pattern"),
     [
-        ({"modle": "table"}, "unknown parameter.*modle"),
-        ({"model": "bridge"}, "model: 'bridge' is not one of none, table, balovnev"),
+        ({"modle": "table"}, "unknown key 'modle' \\(did you mean 'model'\\?\\)"),
+        ({"model": "bridge"}, "model = 'bridge' is not one of none, table, balovnev"),
+        ({"model": 3}, "model must be a string, got 3"),
         ({"model_params": [1]}, "model_params must be a mapping"),
-        ({"tools": {"drill": {}}}, "tools.drill: unknown tool"),
-        ({"tools": {"scoop": {"state_topic": ""}}}, "tools.scoop.state_topic must be a topic"),
-        ({"tools": {"scoop": {"topic": "/a"}}}, r"tools.scoop: unknown key\(s\) topic"),
+        ({"tools": {}}, "tools must be a non-empty mapping of tool name to topics"),
+        ({"tools": ["scoop"]}, "tools must be a mapping, got \\['scoop'\\]"),
+        ({"tools": {"drill": {}}}, "unknown key 'tools/drill'"),
+        ({"tools": {"scop": {}}}, "unknown key 'tools/scop' \\(did you mean 'scoop'\\?\\)"),
+        ({"tools": {"scoop": {"state_topic": ""}}}, "tools/scoop/state_topic must be a topic"),
+        ({"tools": {"scoop": {"topic": "/a"}}}, "unknown key 'tools/scoop/topic'"),
     ],
 )
 def test_bridge_config_errors_name_the_key(params: dict[str, Any], pattern: str) -> None:
     with pytest.raises(ConfigError, match=pattern):
         BridgeConfig.from_dict(params)
+
+
+def test_bridge_config_reports_every_problem_at_once() -> None:
+    with pytest.raises(ConfigError) as error:
+        BridgeConfig.from_dict({"model": "dem", "tools": {"grinder": {"wrench_topic": 5}}})
+    message = str(error.value)
+    assert message.startswith("2 problems in the parameters:")
+    assert "model = 'dem' is not one of" in message
+    assert "tools/grinder/wrench_topic must be a string, got 5" in message
 
 
 def test_tool_state_from_msg_gives_tip_velocity_in_the_link_frame() -> None:

@@ -1,13 +1,22 @@
-"""Parameters of the bridge node, validated into a frozen dataclass (ROS-free)."""
+"""Parameters of the bridge node, validated into a frozen dataclass (ROS-free).
+
+``config/dem.yaml`` (:data:`CONFIG_FILE`) holds the defaults below; the node loads it into its
+private namespace and passes that mapping to :meth:`BridgeConfig.from_dict`.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from ow_dem_bridge.api import LOCAL_MODEL_NAMES
 from ow_dem_bridge.errors import ConfigError
+from ow_lander.params import Params
+
+#: The bridge node's parameter file (``src/ow_dem_bridge/config/dem.yaml``).
+CONFIG_FILE = Path(__file__).resolve().parents[2] / "config" / "dem.yaml"
 
 #: Default topics: the simulation publishes tool states, the bridge answers with wrenches.
 DEFAULT_TOOLS: dict[str, dict[str, str]] = {
@@ -49,40 +58,42 @@ class BridgeConfig:
     def from_dict(cls, params: Mapping[str, Any]) -> BridgeConfig:
         """Validate the node's private parameters (missing keys keep their defaults).
 
+        Every problem is collected and reported at once; a misspelt key gets the nearest known
+        key as a suggestion.
+
+        Args:
+            params: the node's private namespace, e.g. ``config/dem.yaml`` as loaded.
+
         Raises:
-            ConfigError: unknown key, unknown model, or a malformed ``tools`` entry (names the key).
+            ConfigError: unknown key, unknown model, ``model_params`` not a mapping, or a
+                malformed ``tools`` entry; the message names each key.
         """
-        unknown = set(params) - {"model", "model_params", "tools"}
-        if unknown:
-            names = ", ".join(sorted(unknown))
-            msg = f"unknown parameter(s) {names} (known: model, model_params, tools)"
-            raise ConfigError(msg)
-        model = params.get("model", "table")
+        p = Params(params, error=ConfigError)
         # The bridge serves the in-process models: the topic-backed one would ask itself.
-        if model not in LOCAL_MODEL_NAMES:
-            msg = f"model: {model!r} is not one of {', '.join(LOCAL_MODEL_NAMES)}"
-            raise ConfigError(msg)
-        model_params = params.get("model_params", {}) or {}
-        if not isinstance(model_params, Mapping):
-            msg = f"model_params must be a mapping, got {model_params!r}"
-            raise ConfigError(msg)
-        raw_tools = params.get("tools", DEFAULT_TOOLS)
-        if not isinstance(raw_tools, Mapping) or not raw_tools:
-            msg = f"tools must be a non-empty mapping of tool name to topics, got {raw_tools!r}"
-            raise ConfigError(msg)
-        tools = []
-        for tool, topics in raw_tools.items():
-            if tool not in DEFAULT_TOOLS:
-                msg = f"tools.{tool}: unknown tool (known: {', '.join(DEFAULT_TOOLS)})"
-                raise ConfigError(msg)
-            merged = {**DEFAULT_TOOLS[tool], **(topics or {})}
-            extra = set(merged) - {"state_topic", "wrench_topic"}
-            if extra:
-                msg = f"tools.{tool}: unknown key(s) {', '.join(sorted(extra))}"
-                raise ConfigError(msg)
-            for key, value in merged.items():
-                if not isinstance(value, str) or not value:
-                    msg = f"tools.{tool}.{key} must be a topic name, got {value!r}"
-                    raise ConfigError(msg)
-            tools.append(ToolTopics(tool, merged["state_topic"], merged["wrench_topic"]))
-        return cls(str(model), dict(model_params), tuple(tools))
+        model = p.string("model", cls.model, choices=LOCAL_MODEL_NAMES)
+        model_params = dict(p.section("model_params").values)
+        tools = _read_tools(p) if p.has("tools") else cls.tools
+        p.finish()
+        return cls(model, model_params, tools)
+
+
+def _read_tools(p: Params) -> tuple[ToolTopics, ...]:
+    """The ``tools`` mapping (tool -> topics, each topic defaulting to :data:`DEFAULT_TOOLS`)."""
+    raw = p.raw("tools")
+    if not raw and (raw is None or isinstance(raw, Mapping)):
+        p.problem(f"{p.name('tools')} must be a non-empty mapping of tool name to topics")
+    section = p.section("tools")
+    tools = []
+    for tool in section.values:
+        if tool not in DEFAULT_TOOLS:
+            continue  # reported by check_unknown below
+        topics = section.section(tool)
+        names = {}
+        for key, default in DEFAULT_TOOLS[tool].items():
+            names[key] = topics.string(key, default)
+            if not names[key]:
+                topics.problem(f"{topics.name(key)} must be a topic name, got ''")
+        topics.check_unknown()
+        tools.append(ToolTopics(tool, names["state_topic"], names["wrench_topic"]))
+    section.check_unknown(DEFAULT_TOOLS)
+    return tuple(tools)
