@@ -49,6 +49,19 @@ def test_grinder_is_a_stepped_surface_of_revolution() -> None:
             "l_scoop",
             "no fixed joint from 'l_scoop' to 'l_scoop_tip'",
         ),
+        (
+            "<robot name='r'><link name='l_scoop'><collision><geometry><sphere radius='1'/>"
+            "</geometry></collision></link></robot>",
+            "l_scoop",
+            "only box and cylinder collision shapes are supported",
+        ),
+        (
+            "<robot name='r'><link name='l_grinder'><collision name='off'>"
+            "<origin xyz='0 0.1 0'/><geometry><cylinder radius='0.1' length='0.2'/></geometry>"
+            "</collision></link></robot>",
+            "l_grinder",
+            "l_grinder cylinder 'off' is not on the link x axis",
+        ),
     ],
 )
 def test_geometry_errors(tmp_path: Path, text: str, link: str, pattern: str) -> None:

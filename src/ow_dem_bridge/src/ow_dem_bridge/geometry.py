@@ -1,8 +1,10 @@
 """Tool geometry for the DEM, read from the lander URDF (the one source of truth).
 
-The scoop is a set of thin boxes (plates); the DEM sees each plate as a rectangle of two triangles
-on its mid-plane (the plates are 1-2 mm thick, far thinner than a particle). The grinder is a set of
-coaxial cylinders along the link x axis; the DEM sees the surface of revolution of their union.
+The collision shapes come from the workspace's one reader, :mod:`ow_lander.shapes`; this module
+only triangulates them. The scoop is a set of thin boxes (plates); the DEM sees each plate as a
+rectangle of two triangles on its mid-plane (the plates are 1-2 mm thick, far thinner than a
+particle). The grinder is a set of coaxial cylinders along the link x axis; the DEM sees the
+surface of revolution of their union.
 """
 
 from __future__ import annotations
@@ -14,10 +16,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 
 from ow_dem_bridge.api import FloatArray
 from ow_dem_bridge.errors import GeometryError
+from ow_lander.errors import ModelError
+from ow_lander.shapes import link_shapes
 
 Triangle = tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float, float]]
 
@@ -39,16 +42,10 @@ class ToolGeometry:
     tip: FloatArray
 
 
-def _floats(text: str | None, default: str) -> FloatArray:
-    return np.array([float(v) for v in (text or default).split()], dtype=np.float64)
-
-
-def _origin(elem: ET.Element | None) -> tuple[FloatArray, FloatArray]:
-    if elem is None:
-        return np.zeros(3), np.eye(3)
-    return _floats(elem.get("xyz"), "0 0 0"), np.asarray(
-        pin.rpy.rpyToMatrix(_floats(elem.get("rpy"), "0 0 0"))
-    )
+def _xyz(elem: ET.Element | None) -> FloatArray:
+    """(3,) m, the ``xyz`` of a URDF ``<origin>`` (zero when absent)."""
+    text = elem.get("xyz") if elem is not None else None
+    return np.array([float(v) for v in (text or "0 0 0").split()], dtype=np.float64)
 
 
 def _find_link(root: ET.Element, link: str, urdf: Path) -> ET.Element:
@@ -68,7 +65,7 @@ def _tip(root: ET.Element, link: str, urdf: Path) -> FloatArray:
             and parent.get("link") == link
             and child.get("link") == f"{link}_tip"
         ):
-            return _origin(joint.find("origin"))[0]
+            return _xyz(joint.find("origin"))
     msg = f"{urdf}: no fixed joint from {link!r} to {link + '_tip'!r} (the tool tip)"
     raise GeometryError(msg)
 
@@ -115,33 +112,34 @@ def load_tool(urdf: Path, link: str, segments: int = 12) -> ToolGeometry:
         The tool in its link frame.
 
     Raises:
-        GeometryError: the link, its tip joint or usable primitives are missing.
+        GeometryError: the link, its tip joint or its box and cylinder primitives are missing, a
+            grinder cylinder is off the link x axis, or the URDF has a collision shape
+            :mod:`ow_lander.shapes` cannot read (a mesh, a sphere, malformed numbers).
     """
     root = ET.parse(urdf).getroot()
     elem = _find_link(root, link, urdf)
     inertial = elem.find("inertial")
-    com = _origin(inertial.find("origin") if inertial is not None else None)[0]
+    com = _xyz(inertial.find("origin") if inertial is not None else None)
+    try:
+        shapes = link_shapes(link, urdf)
+    except ModelError as exc:
+        msg = f"{urdf}: {exc}"
+        raise GeometryError(msg) from exc
     tris: list[Triangle] = []
     cylinders: list[tuple[float, float, float]] = []  # (x_min, x_max, radius)
-    for col in elem.iter("collision"):
-        xyz, rot = _origin(col.find("origin"))
-        geom = col.find("geometry")
-        box = geom.find("box") if geom is not None else None
-        cyl = geom.find("cylinder") if geom is not None else None
-        if box is not None:
-            tris.extend(_plate(xyz, rot, _floats(box.get("size"), "0 0 0")))
-        elif cyl is not None:
+    for shape in shapes:
+        xyz, rot = shape.translation, shape.rotation
+        if shape.kind == "box":
+            tris.extend(_plate(xyz, rot, np.asarray(shape.size, dtype=np.float64)))
+        else:
             axis = rot[:, 2]
             if abs(abs(axis[0]) - 1) > 1e-3 or abs(xyz[1]) > 1e-9 or abs(xyz[2]) > 1e-9:
-                msg = f"{urdf}: {link} cylinder {col.get('name')!r} is not on the link x axis"
+                msg = f"{urdf}: {link} cylinder {shape.name!r} is not on the link x axis"
                 raise GeometryError(msg)
-            half = float(cyl.get("length", "0")) / 2
-            cylinders.append((xyz[0] - half, xyz[0] + half, float(cyl.get("radius", "0"))))
+            radius, length = shape.size
+            cylinders.append((xyz[0] - length / 2, xyz[0] + length / 2, radius))
     if cylinders:
         tris.extend(_revolve(_union_profile(cylinders), segments))
-    if not tris:
-        msg = f"{urdf}: {link} has no box or cylinder collision primitives"
-        raise GeometryError(msg)
     return ToolGeometry(link, tuple(tris), com, _tip(root, link, urdf))
 
 
