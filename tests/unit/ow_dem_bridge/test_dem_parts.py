@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from ow_dem_bridge.config import CONFIG_FILE, BridgeConfig
-from ow_dem_bridge.conversions import quaternion_matrix, tool_state_from_msg
+from ow_dem_bridge.conversions import tool_state_from_msg
 from ow_dem_bridge.errors import ConfigError, GeometryError
 from ow_dem_bridge.geometry import load_tool
 from ow_dem_bridge.models import TableModel, make_model
@@ -139,10 +139,22 @@ def test_tool_state_from_msg_gives_tip_velocity_in_the_link_frame() -> None:
     msg.twist.angular.z = 1.0
     tip = np.array([0.1, 0.0, 0.08])
     state = tool_state_from_msg(msg, tip)
-    R = quaternion_matrix(0, 0, math.sin(half), math.cos(half))
+    R = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # 90 deg about z
     v_tip_base = np.array([0.1, 0, 0]) + np.cross([0, 0, 1.0], R @ tip)
     assert np.allclose(state.velocity, R.T @ v_tip_base)
     # The spin moves the tip at 0.1 m/s along -x of base, cancelling the translation.
     assert np.allclose(state.velocity, 0.0)
     assert np.allclose(state.angular_velocity, [0, 0, 1.0])
     assert (state.tool, state.material, state.depth, state.progress) == ("scoop", 2, 0.03, 0.1)
+
+
+def test_tool_state_from_msg_normalises_the_orientation() -> None:
+    from ow_msgs.msg import ToolState as ToolStateMsg
+
+    msg = ToolStateMsg()
+    msg.twist.linear.x = 0.1
+    unset = tool_state_from_msg(msg, np.zeros(3))  # all-zero quaternion: the identity
+    assert np.allclose(unset.velocity, [0.1, 0.0, 0.0])
+    msg.pose.orientation.z, msg.pose.orientation.w = 2.0, 2.0  # 90 deg about z, not unit length
+    turned = tool_state_from_msg(msg, np.zeros(3))
+    assert np.allclose(turned.velocity, [0.0, -0.1, 0.0])

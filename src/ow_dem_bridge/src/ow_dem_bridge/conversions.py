@@ -6,24 +6,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 
 from ow_dem_bridge.api import FloatArray, ToolState, Wrench
-
-
-def quaternion_matrix(x: float, y: float, z: float, w: float) -> FloatArray:
-    """(3, 3) rotation matrix of a quaternion (normalised first)."""
-    q = np.array([x, y, z, w], dtype=np.float64)
-    n = float(np.linalg.norm(q))
-    if n == 0.0:
-        return np.eye(3)
-    x, y, z, w = q / n
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def tool_state_from_msg(msg: Any, tip_offset: FloatArray) -> ToolState:
@@ -37,7 +22,8 @@ def tool_state_from_msg(msg: Any, tip_offset: FloatArray) -> ToolState:
         tip_offset: (3,) m, the tool tip in the link frame (e.g. (0.1, 0, 0.08) for l_scoop).
     """
     o = msg.pose.orientation
-    R_base_link = quaternion_matrix(o.x, o.y, o.z, o.w)
+    # Normalised first; an all-zero (unset) orientation reads as the identity.
+    R_base_link = np.asarray(pin.Quaternion(o.w, o.x, o.y, o.z).normalized().matrix())
     v = msg.twist.linear
     w = msg.twist.angular
     omega_base = np.array([w.x, w.y, w.z])
