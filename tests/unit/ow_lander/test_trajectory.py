@@ -63,8 +63,11 @@ def test_csv_round_trip_and_sampling(tmp_path):
     assert back.joints == JOINTS and back.operation == "test"
     assert np.allclose(back.positions, traj.positions, atol=1e-6)
     assert back.segments == traj.segments
+    # Half-way between two rows: the cubic Hermite's midpoint of their positions and velocities.
     t = 0.5 * (back.times[3] + back.times[4])
-    assert np.allclose(back.sample(t), 0.5 * (back.positions[3] + back.positions[4]))
+    h = back.times[4] - back.times[3]
+    midpoint = 0.5 * (back.positions[3] + back.positions[4])
+    assert np.allclose(back.sample(t), midpoint + h / 8 * (back.velocities[3] - back.velocities[4]))
     assert back.segment_span("cut")[1] == pytest.approx(back.duration)
 
 

@@ -14,12 +14,16 @@ CSV format (one file per operation, UTF-8, comma separated)::
 Comment lines start with ``#``. ``time`` is s from the start of the trajectory, ``segment`` the
 label of the motion the row belongs to (e.g. ``approach``, ``pass_1``, ``guarded``), then one
 position column (rad) per joint named in the header and one velocity column (rad/s) per joint,
-prefixed ``v_``. Consecutive rows are linearly interpolated on playback.
+prefixed ``v_``. Between consecutive rows playback follows the cubic Hermite spline through both
+rows' positions and velocities (:class:`Spline`): the one interpolation of the simulation's joint
+trajectory controller and of the arm services' execution monitor and set-point streaming.
 """
 
 from __future__ import annotations
 
+import bisect
 import contextlib
+import functools
 import json
 import os
 import tempfile
@@ -39,6 +43,61 @@ FORMAT_LINE = "# ow_lander trajectory v1"
 MANIFEST_NAME = ".ow_lander_manifest.json"
 #: rad, a direction change between waypoint steps above this makes the arm stop at the waypoint.
 CORNER_ANGLE_RAD = 0.35
+
+
+class Spline:
+    """Piecewise cubic Hermite interpolation through rows of positions and velocities (linear
+    when there are no velocities), held at the first row before it and at the last after it.
+
+    Sampled every physics step by the simulation, so the row times are kept as Python floats:
+    scalar arithmetic and :func:`bisect.bisect_right` on them are cheaper than numpy scalars
+    and ``searchsorted``, with the same values.
+
+    Args:
+        times: (n,) s, strictly increasing.
+        positions: (n, k) rad.
+        velocities: (n, k) rad/s, or None for linear interpolation.
+    """
+
+    def __init__(
+        self, times: FloatArray, positions: FloatArray, velocities: FloatArray | None
+    ) -> None:
+        self._times: list[float] = np.asarray(times, dtype=np.float64).tolist()
+        self._pos = positions
+        self._vel = velocities
+
+    def sample(self, t: float) -> tuple[FloatArray, FloatArray]:
+        """Positions (k,) rad and velocities (k,) rad/s at time ``t`` (s, the rows' time base).
+
+        Outside the rows: the first or last row's positions and zero velocities.
+        """
+        times = self._times
+        if t <= times[0]:
+            return self._pos[0].copy(), np.zeros(self._pos.shape[1])
+        if t >= times[-1]:
+            return self._pos[-1].copy(), np.zeros(self._pos.shape[1])
+        i = bisect.bisect_right(times, t) - 1
+        h = times[i + 1] - times[i]
+        s = (t - times[i]) / h
+        p0, p1 = self._pos[i], self._pos[i + 1]
+        if self._vel is None:
+            return p0 + s * (p1 - p0), (p1 - p0) / h
+        v0, v1 = self._vel[i] * h, self._vel[i + 1] * h
+        h00, h10, h01, h11 = (
+            2 * s**3 - 3 * s**2 + 1,
+            s**3 - 2 * s**2 + s,
+            -2 * s**3 + 3 * s**2,
+            s**3 - s**2,
+        )
+        d00, d10, d01, d11 = (
+            6 * s**2 - 6 * s,
+            3 * s**2 - 4 * s + 1,
+            -6 * s**2 + 6 * s,
+            3 * s**2 - 2 * s,
+        )
+        position = h00 * p0 + h10 * v0 + h01 * p1 + h11 * v1
+        velocity = (d00 * p0 + d10 * v0 + d01 * p1 + d11 * v1) / h
+        return position, velocity
 
 
 @dataclass(frozen=True)
@@ -81,15 +140,14 @@ class Trajectory:
         """s, time of the last row."""
         return float(self.times[-1])
 
+    @functools.cached_property
+    def spline(self) -> Spline:
+        """The rows' cubic Hermite spline: what the simulation's trajectory controller follows."""
+        return Spline(self.times, self.positions, self.velocities)
+
     def sample(self, t: float) -> FloatArray:
-        """(k,) rad, positions at time ``t`` (s), linear between rows, clamped at both ends."""
-        if t <= self.times[0]:
-            return self.positions[0].copy()
-        if t >= self.times[-1]:
-            return self.positions[-1].copy()
-        i = int(np.searchsorted(self.times, t, side="right")) - 1
-        w = (t - self.times[i]) / (self.times[i + 1] - self.times[i])
-        return np.asarray((1 - w) * self.positions[i] + w * self.positions[i + 1])
+        """(k,) rad, positions at time ``t`` (s) on :attr:`spline`, clamped at both ends."""
+        return self.spline.sample(t)[0]
 
     def segment_at(self, t: float) -> str:
         """Label of the segment running at time ``t`` (s)."""

@@ -1,14 +1,14 @@
 """Joint trajectories the simulation interpolates itself (the paper's future trajectory controller).
 
 A trajectory names some joints and gives way points at times from its start. Between way points
-the set-point is a cubic Hermite spline when every point has velocities, else linear. Before the
-first way point the set-point moves linearly from where it was when the trajectory started;
-after the last one it holds the last point.
+the set-point is a cubic Hermite spline when every point has velocities, else linear: the
+interpolation of :class:`ow_lander.trajectory.Spline`, the same the arm services check their
+tracking against. Before the first way point the set-point moves linearly from where it was when
+the trajectory started; after the last one it holds the last point.
 """
 
 from __future__ import annotations
 
-import bisect
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from ow_lander.trajectory import Spline
 from ow_sim_bullet.errors import CommandError
 
 FloatArray = npt.NDArray[np.float64]
@@ -121,54 +122,24 @@ class ActiveTrajectory:
         t0 = max(trajectory.start_time, accept_time)
         # Way points before the accept time are kept; the ramp only runs when the first point is
         # still ahead of the accept time.
-        self._times = np.concatenate(([t0 - trajectory.start_time], trajectory.times))
-        self._pos = np.vstack((start_positions, trajectory.positions))
-        self._vel = (
+        times = np.concatenate(([t0 - trajectory.start_time], trajectory.times))
+        positions = np.vstack((start_positions, trajectory.positions))
+        velocities = (
             None
             if trajectory.velocities is None
             else np.vstack((np.zeros_like(start_positions), trajectory.velocities))
         )
-        if trajectory.times[0] <= self._times[0]:
-            self._times, self._pos = self._times[1:], self._pos[1:]
-            if self._vel is not None:
-                self._vel = self._vel[1:]
-        # Sampled every physics step: the times as Python floats (cheaper scalar arithmetic and
-        # bisect than numpy scalars and searchsorted, same values).
-        self._time_list: list[float] = self._times.tolist()
+        if trajectory.times[0] <= times[0]:
+            times, positions = times[1:], positions[1:]
+            if velocities is not None:
+                velocities = velocities[1:]
+        self._spline = Spline(times, positions, velocities)
         self._start_time = trajectory.start_time
         self._end_time = trajectory.end_time
 
     def sample(self, now: float) -> tuple[FloatArray, FloatArray]:
         """Set-point positions (k,) rad and velocities (k,) rad/s at sim time ``now`` (s)."""
-        t = now - self._start_time
-        times = self._time_list
-        if t <= times[0]:
-            return self._pos[0].copy(), np.zeros(self._pos.shape[1])
-        if t >= times[-1]:
-            last_v = np.zeros(self._pos.shape[1])
-            return self._pos[-1].copy(), last_v
-        i = bisect.bisect_right(times, t) - 1
-        h = times[i + 1] - times[i]
-        s = (t - times[i]) / h
-        p0, p1 = self._pos[i], self._pos[i + 1]
-        if self._vel is None:
-            return p0 + s * (p1 - p0), (p1 - p0) / h
-        v0, v1 = self._vel[i] * h, self._vel[i + 1] * h
-        h00, h10, h01, h11 = (
-            2 * s**3 - 3 * s**2 + 1,
-            s**3 - 2 * s**2 + s,
-            -2 * s**3 + 3 * s**2,
-            s**3 - s**2,
-        )
-        d00, d10, d01, d11 = (
-            6 * s**2 - 6 * s,
-            3 * s**2 - 4 * s + 1,
-            -6 * s**2 + 6 * s,
-            3 * s**2 - 2 * s,
-        )
-        position = h00 * p0 + h10 * v0 + h01 * p1 + h11 * v1
-        velocity = (d00 * p0 + d10 * v0 + d01 * p1 + d11 * v1) / h
-        return position, velocity
+        return self._spline.sample(now - self._start_time)
 
     def finished(self, now: float) -> bool:
         """True once sim time ``now`` (s) is past the last point."""
