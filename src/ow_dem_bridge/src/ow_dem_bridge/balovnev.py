@@ -19,6 +19,7 @@ import numpy as np
 
 from ow_dem_bridge.api import ToolState, Wrench
 from ow_dem_bridge.errors import ConfigError
+from ow_lander.description import EUROPA_GRAVITY
 
 
 @dataclass(frozen=True)
@@ -26,7 +27,7 @@ class BalovnevParams:
     """Constants of the model (defaults: later OceanWATERS, Europa).
 
     Attributes:
-        gravity: m/s2.
+        gravity: m/s2 (Europa's, ``ow_lander.description.EUROPA_GRAVITY``).
         width: m, bucket width.
         side_plate_length: m.
         blunt_edge_thickness: m.
@@ -43,7 +44,7 @@ class BalovnevParams:
         max_vertical: N, cap of V.
     """
 
-    gravity: float = 1.315
+    gravity: float = EUROPA_GRAVITY
     width: float = 0.085
     side_plate_length: float = 0.1225
     blunt_edge_thickness: float = 0.0004
