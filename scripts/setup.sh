@@ -16,6 +16,8 @@ apt_packages=(
   python3-visualization-msgs python3-trajectory-msgs python3-rosgraph-msgs python3-tf2-msgs
   ros-trajectory-msgs ros-sensor-msgs libsensor-msgs-dev python3-roslaunch
   python3-genpy python3-genmsg python3-venv python3-pip g++ make cmake
+  # what other Debian Python packages ask for, so that `pip check` in the venv is clean
+  python3-cffi python3-cairo
 )
 [ "${OW_SKIP_YADE:-0}" = 1 ] || apt_packages+=(yade)
 
@@ -56,6 +58,14 @@ if ! cmp -s requirements.txt .venv/.requirements.installed; then
     | { grep -v "is ignored: it is neither a file nor a directory" || true; }
   cp requirements.txt .venv/.requirements.installed
 fi
+
+# Debian's matplotlib (pulled in by yade) declares mpl_toolkits a namespace package rooted in its
+# own tree; without this, `mpl_toolkits.mplot3d` resolves to Debian's 3.6 copy and the venv's
+# matplotlib warns "Unable to import Axes3D". This .pth runs before the system site's and puts
+# the venv's mpl_toolkits first.
+pth=$(.venv/bin/python -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')/ow_mpl_toolkits.pth
+pth_line="import sys, types, os; m = sys.modules.setdefault('mpl_toolkits', types.ModuleType('mpl_toolkits')); p = os.path.join(sitedir, 'mpl_toolkits'); mp = m.__dict__.setdefault('__path__', []); (p not in mp) and mp.insert(0, p)"
+[ "$(cat "$pth" 2>/dev/null)" = "$pth_line" ] || echo "$pth_line" > "$pth"
 
 # catkin_make only when a build input changed since the last build.
 stamp=build/.ow_build_stamp
