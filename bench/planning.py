@@ -12,7 +12,7 @@ import time
 import numpy as np
 
 from ow_lander.config import PlannerConfig
-from ow_lander.description import STOWED, UNSTOWED
+from ow_lander.description import DEFAULT_GROUND_Z, STOWED, UNSTOWED
 from ow_lander.errors import PlanningError
 from ow_lander.model import LanderModel
 from ow_lander.operations import Operations
@@ -33,7 +33,7 @@ REQUESTS = {
 
 def main() -> None:
     model = LanderModel()
-    terrain = HeightMap.flat(-0.155)
+    terrain = HeightMap.flat(DEFAULT_GROUND_Z)
     for name, (pose, request) in REQUESTS.items():
         times: list[float] = []
         failures = 0

@@ -1,12 +1,20 @@
 """The lander model (ow_lander.model) against results derived independently of pinocchio."""
 
+import coal
 import numpy as np
 import pybullet as pb
 import pytest
 
-from ow_lander.description import ARM_JOINTS, STOWED, UNSTOWED, URDF_PATH
+from ow_lander.description import (
+    ARM_JOINTS,
+    DEFAULT_GROUND_Z,
+    EUROPA_GRAVITY,
+    STOWED,
+    UNSTOWED,
+    URDF_PATH,
+)
 from ow_lander.errors import IKError, ModelError
-from ow_lander.model import EUROPA_GRAVITY, LanderModel
+from ow_lander.model import LanderModel
 from ow_lander.terrain import HeightMap
 
 
@@ -190,7 +198,7 @@ def test_rnea_at_rest_is_gravity(model):
 
 
 # --------------------------------------------------------------------------------------------
-FLAT = HeightMap.flat(-0.155)
+FLAT = HeightMap.flat(DEFAULT_GROUND_Z)
 
 
 @pytest.mark.parametrize("name, angles", [("stowed", STOWED), ("unstowed", UNSTOWED)])
@@ -211,7 +219,7 @@ def test_scoop_driven_into_the_lander_body_is_flagged(model):
 
 def test_scoop_below_the_terrain_is_flagged_and_excludable(model):
     q = model.q_from({"j_shou_pitch": 0.9}, model.q_from(UNSTOWED))
-    assert model.position(q, "l_scoop_tip")[2] > -0.155  # the tip itself is above ground...
+    assert model.position(q, "l_scoop_tip")[2] > DEFAULT_GROUND_Z  # the tip is above ground...
     low = HeightMap.flat(0.0)  # ...but not above a terrain at z = 0
     report = model.collision_report(q, low)
     assert report.terrain_link in {"l_scoop", "l_hand", "l_grinder"}
@@ -224,12 +232,33 @@ def test_scoop_below_the_terrain_is_flagged_and_excludable(model):
 
 def test_terrain_margin(model):
     q = model.q_from(UNSTOWED)
-    lowest = min(
-        model.collision_report(q, HeightMap.flat(z)).terrain_penetration for z in (-0.155,)
-    )
-    assert lowest == 0.0
-    # With a 1 m margin the unstowed arm (scoop tip at z 0.54) is "too close" to z = -0.155.
+    assert model.collision_report(q, FLAT).terrain_penetration == 0.0
+    # With a 1 m margin the unstowed arm (scoop tip at z 0.54) is "too close" to the ground.
     assert model.in_collision(q, FLAT, terrain_margin=1.0)
+
+
+def test_terrain_sample_points_lie_on_the_coal_geometry(model):
+    # The points are made from the URDF's shapes (ow_lander.shapes); the coal objects pinocchio
+    # built from the same URDF must carry every one of them on their surface.
+    checker = model.collision
+    objects = checker.geom_model.geometryObjects
+    for link, samples in checker._terrain_samples.items():
+        on_link = [g for g in objects if model.model.frames[g.parentFrame].name == link]
+        assert {g.parentJoint for g in on_link} == {samples.joint}, link
+        boxes = sum(isinstance(g.geometry, coal.Box) for g in on_link)
+        assert len(samples.points) == 14 * boxes + 24 * (len(on_link) - boxes), link
+        on_surface = np.zeros(len(samples.points), dtype=bool)
+        for g in on_link:
+            local = (samples.points - g.placement.translation) @ g.placement.rotation
+            shape = g.geometry
+            if isinstance(shape, coal.Box):
+                on_surface |= np.isclose(np.max(np.abs(local) / shape.halfSide, axis=1), 1.0)
+            else:
+                radial, axial = np.hypot(local[:, 0], local[:, 1]), np.abs(local[:, 2])
+                on_surface |= np.isclose(radial, shape.radius) & np.isclose(axial, shape.halfLength)
+        assert on_surface.all(), link
+        distances = np.linalg.norm(samples.points - samples.centre, axis=1)
+        assert distances.max() == pytest.approx(samples.radius)
 
 
 def test_unknown_names_are_reported(model):

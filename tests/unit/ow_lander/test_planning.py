@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from ow_lander.config import ArmServicesConfig, PlannerConfig
-from ow_lander.description import UNSTOWED
+from ow_lander.description import DEFAULT_GROUND_Z, UNSTOWED
 from ow_lander.errors import ConfigError, PlanningError
 from ow_lander.model import LanderModel
 from ow_lander.planning import ArmPlanner, CheckContext, densify
@@ -18,7 +18,7 @@ def planner():
 
 @pytest.fixture(scope="module")
 def ctx(planner):
-    return CheckContext(planner.model.q_from(UNSTOWED), HeightMap.flat(-0.155))
+    return CheckContext(planner.model.q_from(UNSTOWED), HeightMap.flat(DEFAULT_GROUND_Z))
 
 
 def _blocked_goal(planner, ctx):

@@ -7,14 +7,13 @@ import re
 import numpy as np
 import pytest
 
+from ow_lander.collision import ARM_LINKS, TerrainBlocks
 from ow_lander.config import PlannerConfig
-from ow_lander.description import UNSTOWED
+from ow_lander.description import DEFAULT_GROUND_Z, UNSTOWED
 from ow_lander.errors import PlanningError
-from ow_lander.model import ARM_LINKS, LanderModel, TerrainBlocks
+from ow_lander.model import LanderModel
 from ow_lander.planning import ArmPlanner, CheckContext, _coarse_to_fine
 from ow_lander.terrain import HeightMap
-
-GROUND = -0.155
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +23,7 @@ def planner():
 
 def _rough(seed: int, shape=(121, 121), resolution=0.05) -> HeightMap:
     rng = np.random.default_rng(seed)
-    heights = GROUND + 0.05 * rng.standard_normal(shape)
+    heights = DEFAULT_GROUND_Z + 0.05 * rng.standard_normal(shape)
     return HeightMap(heights, resolution, -3.0, -3.0)
 
 
@@ -34,7 +33,7 @@ def _rough(seed: int, shape=(121, 121), resolution=0.05) -> HeightMap:
         (_rough(1), 0.25),
         (_rough(2, (40, 61), 0.1), 0.35),
         (_rough(3, (7, 5), 0.05), 1.0),
-        (HeightMap.flat(GROUND), 0.25),
+        (HeightMap.flat(DEFAULT_GROUND_Z), 0.25),
     ],
 )
 def test_terrain_blocks_bound_every_height_under_the_square(terrain, block):
@@ -112,7 +111,7 @@ def test_cartesian_line_into_the_ground_stops_before_it_or_names_the_waypoint(pl
     base = model.q_from(UNSTOWED)
     X = model.fk(base, "l_scoop_tip")
     # A 0.45 m high block under the scoop; the scoop must stay above it (it is not digging).
-    flat = HeightMap.flat(GROUND)
+    flat = HeightMap.flat(DEFAULT_GROUND_Z)
     xs, ys = flat.cell_centres()
     block = (np.abs(ys[:, None] - X[1, 3]) < 0.3) & (np.abs(xs[None, :] - X[0, 3]) < 0.3)
     heights = np.where(block, 0.3, flat.heights)
@@ -135,7 +134,7 @@ def test_cartesian_line_into_the_ground_stops_before_it_or_names_the_waypoint(pl
 
 
 def test_plan_straight_is_direct_staged_or_none(planner):
-    ctx = CheckContext(planner.model.q_from(UNSTOWED), HeightMap.flat(GROUND))
+    ctx = CheckContext(planner.model.q_from(UNSTOWED), HeightMap.flat(DEFAULT_GROUND_Z))
     start = planner.arm(ctx.base)
     kinds = set()
     for goal in _random_states(planner, 40, 8):

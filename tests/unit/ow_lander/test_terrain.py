@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from ow_lander.description import DEFAULT_GROUND_Z
 from ow_lander.errors import TerrainError
 from ow_lander.terrain import HeightMap
 
@@ -25,8 +26,8 @@ def test_outside_the_grid_the_edge_continues():
 
 
 def test_flat():
-    hm = HeightMap.flat(-0.155)
-    assert np.all(hm.height_at(np.linspace(-3, 3, 7), np.zeros(7)) == -0.155)
+    hm = HeightMap.flat(DEFAULT_GROUND_Z)
+    assert np.all(hm.height_at(np.linspace(-3, 3, 7), np.zeros(7)) == DEFAULT_GROUND_Z)
 
 
 @pytest.mark.parametrize(
