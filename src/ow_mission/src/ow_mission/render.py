@@ -1,13 +1,11 @@
 """Headless pictures of the lander arm on its terrain (pybullet's TinyRenderer, no GPU, no ROS).
 
-The URDF has collision shapes only; :func:`render_scene` draws those shapes, coloured per link,
-with the terrain height map as a heightfield.
+:func:`render_scene` draws the URDF's visual shapes (primitives coloured per part) with the terrain
+height map as a heightfield.
 """
 
 from __future__ import annotations
 
-import tempfile
-import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,14 +16,6 @@ import pybullet as pb
 
 from ow_lander.description import URDF_PATH
 from ow_lander.terrain import HeightMap
-
-_COLOURS = {
-    "base_link": (0.75, 0.75, 0.72, 1.0),
-    "l_scoop": (0.95, 0.65, 0.15, 1.0),
-    "l_grinder": (0.85, 0.25, 0.2, 1.0),
-    "lander_sample_dock0": (0.2, 0.6, 0.9, 1.0),
-}
-_ARM_COLOUR = (0.35, 0.38, 0.45, 1.0)
 
 
 @dataclass(frozen=True)
@@ -49,31 +39,6 @@ class Camera:
     height: int = 480
 
 
-def _visual_urdf(path: Path) -> Path:
-    """A copy of the URDF whose links also show their collision shapes as visuals."""
-    tree = ET.parse(path)
-    for link in tree.getroot().iter("link"):
-        rgba = _COLOURS.get(link.get("name", ""), _ARM_COLOUR)
-        for collision in link.findall("collision"):
-            visual = ET.SubElement(link, "visual")
-            for child in collision:
-                visual.append(child)
-            material = ET.SubElement(visual, "material", name=f"m_{link.get('name')}")
-            ET.SubElement(material, "color", rgba=" ".join(f"{c:g}" for c in rgba))
-    # ET.SubElement above moved the children; collision elements are rebuilt from the source.
-    out = Path(tempfile.mkdtemp(prefix="ow_render_")) / "lander_visual.urdf"
-    source = ET.parse(path)
-    for link_out, link_src in zip(
-        tree.getroot().iter("link"), source.getroot().iter("link"), strict=True
-    ):
-        for collision in link_out.findall("collision"):
-            link_out.remove(collision)
-        for collision in link_src.findall("collision"):
-            link_out.append(collision)
-    tree.write(out)
-    return out
-
-
 def render_scene(
     joint_positions: Mapping[str, float],
     terrain: HeightMap | None = None,
@@ -94,7 +59,7 @@ def render_scene(
     cam = camera or Camera()
     client = pb.connect(pb.DIRECT)
     try:
-        body = pb.loadURDF(str(_visual_urdf(urdf_path)), useFixedBase=True, physicsClientId=client)
+        body = pb.loadURDF(str(urdf_path), useFixedBase=True, physicsClientId=client)
         for i in range(pb.getNumJoints(body, physicsClientId=client)):
             name = pb.getJointInfo(body, i, physicsClientId=client)[1].decode()
             if name in joint_positions:
