@@ -4,8 +4,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from ow_lander.description import URDF_PATH
-from ow_lander.model import EUROPA_GRAVITY, LanderModel
+from ow_lander.description import EUROPA_GRAVITY, URDF_PATH
+from ow_lander.model import LanderModel
 from ow_power.energy import ArmEnergyModel, EnergyBalance, dissipated_work_j
 from ow_power.errors import PowerError
 
@@ -72,6 +72,27 @@ def test_potential_energy_is_europas_like_the_simulation_and_the_lander_model():
     assert moon.potential_energy_j(names, position) == pytest.approx(
         lander.potential_energy(q) * 1.62 / EUROPA_GRAVITY
     )
+
+
+def test_kinetic_energy_is_half_v_m_v_with_joints_matched_by_name():
+    arm = ArmEnergyModel()
+    model = pin.buildModelFromUrdf(str(URDF_PATH))
+    data = model.createData()
+    names = ["j_scoop_yaw", "j_shou_pitch", "not_a_joint", "j_prox_pitch"]
+    position, velocity = [0.2, 1.2, 5.0, -0.8], [0.3, -0.4, 9.0, 0.5]
+    q, v = pin.neutral(model), np.zeros(model.nv)
+    for name, p, w in zip(names, position, velocity, strict=True):
+        if model.existJointName(name):
+            q[model.joints[model.getJointId(name)].idx_q] = p
+            v[model.joints[model.getJointId(name)].idx_v] = w
+    expected = 0.5 * v @ pin.crba(model, data, q) @ v
+    assert expected > 0.0
+    assert arm.kinetic_energy_j(names, position, velocity) == pytest.approx(expected, rel=1e-12)
+
+
+def test_non_finite_gravity_is_an_error():
+    with pytest.raises(PowerError, match="gravity=nan m/s\\^2 is not a finite number"):
+        ArmEnergyModel(gravity=float("nan"))
 
 
 def test_balance_with_the_simulations_damping_torque():

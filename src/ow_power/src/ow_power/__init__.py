@@ -2,5 +2,6 @@
 
 The modules without ROS imports (:mod:`ow_power.model`, :mod:`ow_power.energy`,
 :mod:`ow_power.bagwriter`, :mod:`ow_power.analysis`) work in any Python with numpy, pandas and
-rosbags; the ``*_node`` modules are the thin rospy wrappers.
+rosbags (:class:`ow_power.energy.ArmEnergyModel` also needs pinocchio and ``ow_lander``); the
+``*_node`` modules are the thin rospy wrappers.
 """

@@ -2,12 +2,14 @@
 
 The balance checks the power model against the simulation: over a motion from t0 to t1, the work
 the joint motors did, ``W = sum_k sum_i tau_i(k) * dtheta_i(k) * dt_k``, equals the rise of the
-arm's potential and kinetic energy (pinocchio, from the URDF) plus what the joint damping and
-Coulomb friction dissipated, ``sum_k sum_i (d_i * dtheta_i(k)**2 + f_i * |dtheta_i(k)|) * dt_k``
-(plus any work done on the terrain, zero in free space).
+arm's potential and kinetic energy plus what the joint damping and Coulomb friction dissipated,
+``sum_k sum_i (d_i * dtheta_i(k)**2 + f_i * |dtheta_i(k)|) * dt_k`` (plus any work done on the
+terrain, zero in free space). The energies come from the workspace's one model of the lander,
+:class:`ow_lander.model.LanderModel` (pinocchio, from the URDF), the one the arm services use.
 
-Gravity is Europa's (1.315 m/s^2, as in the simulation) unless given: pinocchio's default is the
-Earth's 9.81 m/s^2, which would overstate every potential-energy change 7.5 times. Where the
+Gravity is Europa's (``ow_lander.description.EUROPA_GRAVITY``, as in the simulation) unless given:
+pinocchio's default is the Earth's 9.81 m/s^2, which would overstate every potential-energy change
+7.5 times. Where the
 simulation publishes the damping torque it applied (``/sim/joint_damping``), pass it as
 ``damping_effort``: the losses are then ``-sum damping_effort * dtheta * dt`` exactly, rather than
 the URDF's ``d * dtheta**2`` (the simulation's implicit damper gives a smaller torque on the light
@@ -20,13 +22,17 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ow_lander.description import EUROPA_GRAVITY, URDF_PATH
 from ow_power.errors import PowerError
 from ow_power.model import integrate_j
+
+if TYPE_CHECKING:
+    from ow_lander.model import LanderModel
 
 
 def dissipated_work_j(
@@ -85,13 +91,15 @@ class EnergyBalance:
 
 
 class ArmEnergyModel:
-    """Potential and kinetic energy, damping and friction of the lander from its URDF (pinocchio).
+    """Potential and kinetic energy, damping and friction of the lander from its URDF.
 
-    Joints are matched by name; joints of the URDF that a joint state does not list are held at
-    their neutral position (0 rad), and joint-state names the URDF lacks are ignored.
+    The energies are those of :class:`ow_lander.model.LanderModel` (its pinocchio model). Joints
+    are matched by name; joints of the URDF that a joint state does not list are held at their
+    neutral position (0 rad), and joint-state names the URDF lacks are ignored.
 
     Attributes:
         gravity: m/s^2, magnitude of gravity along -z of ``base_link``.
+        lander: the lander model the energies come from.
         damping: N m s/rad, viscous damping per joint name (URDF ``<dynamics damping>``).
         friction: N m, Coulomb friction per joint name (URDF ``<dynamics friction>``).
     """
@@ -102,55 +110,44 @@ class ArmEnergyModel:
         Args:
             urdf_path: URDF file; default the lander of ``ow_lander.description``.
             gravity: m/s^2, along -z of ``base_link``; default Europa's
-                (``ow_lander.model.EUROPA_GRAVITY``, the simulation's default).
+                (``ow_lander.description.EUROPA_GRAVITY``, the simulation's default).
 
         Raises:
             PowerError: the URDF cannot be loaded, or ``gravity`` is not finite.
         """
-        import pinocchio as pin  # pinocchio is heavy; only the balance needs it
+        # pinocchio is heavy: the import waits until a balance is wanted.
+        from ow_lander.errors import ModelError
+        from ow_lander.model import LanderModel
 
         if gravity is None:
-            from ow_lander.model import EUROPA_GRAVITY
-
             gravity = EUROPA_GRAVITY
         if not math.isfinite(gravity):
             msg = f"gravity={gravity} m/s^2 is not a finite number"
             raise PowerError(msg)
         if urdf_path is None:
-            from ow_lander.description import URDF_PATH
-
             urdf_path = URDF_PATH
         try:
-            self._model: Any = pin.buildModelFromUrdf(str(urdf_path))
-        except (RuntimeError, ValueError) as exc:
+            self.lander: LanderModel = LanderModel(Path(urdf_path), float(gravity))
+        except (ModelError, RuntimeError, ValueError) as exc:
             msg = f"cannot load URDF {urdf_path}: {exc}"
             raise PowerError(msg) from exc
         self.gravity = float(gravity)
-        self._model.gravity.linear = np.array([0.0, 0.0, -self.gravity])
-        self._data: Any = self._model.createData()
-        self._pin: Any = pin
-        names = list(self._model.names)[1:]
-        joint_ids = [self._model.getJointId(n) for n in names]
-        self._idx_q = {
-            n: self._model.joints[j].idx_q for n, j in zip(names, joint_ids, strict=True)
-        }
-        self._idx_v = {
-            n: self._model.joints[j].idx_v for n, j in zip(names, joint_ids, strict=True)
-        }
-        self.damping = {n: float(self._model.damping[self._idx_v[n]]) for n in names}
-        self.friction = {n: float(self._model.friction[self._idx_v[n]]) for n in names}
+        model = self.lander.model
+        names = list(model.names)[1:]
+        self._idx_v = {n: model.joints[model.getJointId(n)].idx_v for n in names}
+        self.damping = {n: float(model.damping[self._idx_v[n]]) for n in names}
+        self.friction = {n: float(model.friction[self._idx_v[n]]) for n in names}
 
     def _vectors(
         self, names: Sequence[str], position: ArrayLike, velocity: ArrayLike | None
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        q = self._pin.neutral(self._model)
-        v = np.zeros(self._model.nv)
         pos = np.asarray(position, dtype=float)
         vel = np.zeros_like(pos) if velocity is None else np.asarray(velocity, dtype=float)
-        for i, name in enumerate(names):
-            if name in self._idx_q:
-                q[self._idx_q[name]] = pos[i]
-                v[self._idx_v[name]] = vel[i]
+        known = [(i, name) for i, name in enumerate(names) if name in self._idx_v]
+        q = self.lander.q_from({name: pos[i] for i, name in known})
+        v = np.zeros(self.lander.model.nv)
+        for i, name in known:
+            v[self._idx_v[name]] = vel[i]
         return q, v
 
     def potential_energy_j(self, names: Sequence[str], position: ArrayLike) -> float:
@@ -161,7 +158,7 @@ class ArmEnergyModel:
             position: (n,) rad, in the order of ``names``.
         """
         q, _ = self._vectors(names, position, None)
-        return float(self._pin.computePotentialEnergy(self._model, self._data, q))
+        return self.lander.potential_energy(q)
 
     def kinetic_energy_j(
         self, names: Sequence[str], position: ArrayLike, velocity: ArrayLike
@@ -173,8 +170,10 @@ class ArmEnergyModel:
             position: (n,) rad.
             velocity: (n,) rad/s.
         """
+        import pinocchio as pin
+
         q, v = self._vectors(names, position, velocity)
-        return float(self._pin.computeKineticEnergy(self._model, self._data, q, v))
+        return float(pin.computeKineticEnergy(self.lander.model, self.lander.data, q, v))
 
     def balance(
         self,
