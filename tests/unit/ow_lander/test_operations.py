@@ -7,14 +7,15 @@ import numpy as np
 import pytest
 
 from ow_lander.config import PlannerConfig
-from ow_lander.description import ARM_JOINTS, STOWED, UNSTOWED
+from ow_lander.description import ARM_JOINTS, DEFAULT_GROUND_Z, STOWED, UNSTOWED
 from ow_lander.errors import PlanningError
 from ow_lander.model import ARM_LINKS, LanderModel
 from ow_lander.operations import DOCK_CENTRE, Operations, shoulder_yaw_for
 from ow_lander.planning import ArmPlanner, CheckContext
 from ow_lander.terrain import HeightMap
+from ow_lander.trajectory import Speed
 
-GROUND = -0.155
+GROUND = DEFAULT_GROUND_Z
 DIGGING = {
     "descend",
     "pass_1",
@@ -26,6 +27,14 @@ DIGGING = {
     "lift_out",
     "sweep",
     "guarded",
+}
+#: The speed class of each labelled motion (the rest: free space): what the node's timing
+#: policy, a table keyed by these labels, gave them before the plans carried their speeds.
+SPEEDS = {
+    "guarded": Speed.GUARDED,
+    **dict.fromkeys(
+        ("descend", "pass_1", "shift", "pass_2", "dip_in", "cut", "lift_out", "sweep"), Speed.DIG
+    ),
 }
 TOOL = {
     "grind": "l_grinder",
@@ -100,6 +109,9 @@ def test_plan_starts_here_and_is_collision_free(ops, terrain, name, pose, reques
     assert np.allclose(plan.segments[0].waypoints[0], q[ops.model.arm_idx])
     for a, b in itertools.pairwise(plan.segments):
         assert np.allclose(a.waypoints[-1], b.waypoints[0])
+    assert [s.speed for s in plan.segments] == [
+        SPEEDS.get(s.label, Speed.FREE) for s in plan.segments
+    ]
     _check_collision_free(ops, q, terrain, plan)
 
 

@@ -3,17 +3,21 @@
 import numpy as np
 import pytest
 
+from ow_lander.description import DEFAULT_GROUND_Z
 from ow_lander.errors import TrajectoryError
 from ow_lander.ground_detection import ForceDetector, GroundDetector
-from ow_lander.trajectory import PathSegment, TrajectoryStore, read_csv, time_parameterize
+from ow_lander.trajectory import PathSegment, Speed, TrajectoryStore, read_csv, time_parameterize
 
 JOINTS = ("a", "b")
 VMAX = np.array([0.2, 0.4])
 AMAX = np.array([0.2, 0.2])
 
 
-def _timed(segments, period=0.05):
-    return time_parameterize(segments, JOINTS, VMAX, AMAX, period, "test")
+SCALES = {Speed.FREE: 1.0, Speed.DIG: 0.25, Speed.GUARDED: 0.5}
+
+
+def _timed(segments, period=0.05, scales=None):
+    return time_parameterize(segments, JOINTS, VMAX, AMAX, period, "test", scales)
 
 
 @pytest.mark.parametrize(
@@ -36,12 +40,15 @@ def test_limits_respected_and_waypoints_reached(waypoints):
     assert np.allclose(traj.velocities[-1], 0.0)
 
 
-def test_speed_scale_slows_a_segment():
+def test_a_segment_moves_at_the_scale_of_its_speed_class():
     path = np.array([[0.0, 0.0], [1.0, 0.0]])
-    fast = _timed([PathSegment("s", path)])
-    slow = _timed([PathSegment("s", path, 0.25)])
+    fast = _timed([PathSegment("s", path)], scales=SCALES)
+    slow = _timed([PathSegment("s", path, Speed.DIG)], scales=SCALES)
     assert slow.duration > 2 * fast.duration
-    assert np.all(np.max(np.abs(slow.velocities), axis=0) <= 0.25 * VMAX * (1 + 1e-9))
+    assert np.max(np.abs(fast.velocities[:, 0])) == pytest.approx(VMAX[0])
+    assert np.max(np.abs(slow.velocities[:, 0])) == pytest.approx(0.25 * VMAX[0])
+    # Without scales every class moves at the full limits.
+    assert _timed([PathSegment("s", path, Speed.DIG)]).duration == pytest.approx(fast.duration)
 
 
 def test_corner_stops_the_arm():
@@ -123,8 +130,9 @@ def test_steady_span_is_the_cruise_between_the_ramps():
     trajectory = _timed(
         [
             PathSegment("approach", np.array([[0.0, 0.0], [0.1, 0.0]])),
-            PathSegment("guarded", np.array([[0.1, 0.0], [0.5, 0.0]]), speed_scale=0.5),
-        ]
+            PathSegment("guarded", np.array([[0.1, 0.0], [0.5, 0.0]]), Speed.GUARDED),
+        ],
+        scales=SCALES,
     )
     first, last = trajectory.segment_span("guarded")
     steady, braking = trajectory.steady_span("guarded")
@@ -174,8 +182,9 @@ def test_force_detector_fires_on_a_rise_over_the_tare():
         assert not detector.update(
             tare + np.array([0.0, 0.0, 0.9 * k]), np.array([1.7, 0.0, -0.1 - k])
         )
-    assert detector.update(tare + np.array([0.0, 0.0, 10.0]), np.array([1.7, 0.0, -0.155]))
-    assert detector.contact[2] == pytest.approx(-0.155)
+    ground = np.array([1.7, 0.0, DEFAULT_GROUND_Z])
+    assert detector.update(tare + np.array([0.0, 0.0, 10.0]), ground)
+    assert detector.contact[2] == pytest.approx(DEFAULT_GROUND_Z)
     # Once found it stays found, whatever follows.
     assert detector.update(tare, np.array([0.0, 0.0, 0.0]))
-    assert detector.contact[2] == pytest.approx(-0.155)
+    assert detector.contact[2] == pytest.approx(DEFAULT_GROUND_Z)

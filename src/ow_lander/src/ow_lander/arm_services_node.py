@@ -51,10 +51,10 @@ from ow_lander.description import ALL_JOINTS, ARM_JOINTS, BASE_FRAME, SCOOP_TIP_
 from ow_lander.errors import ConfigError, OwLanderError, PlanningError, TrajectoryError
 from ow_lander.ground_detection import ForceDetector, GroundDetector
 from ow_lander.model import LanderModel
-from ow_lander.operations import OperationPlan, Operations
+from ow_lander.operations import Operations
 from ow_lander.planning import ArmPlanner
 from ow_lander.terrain import HeightMap
-from ow_lander.trajectory import Trajectory, TrajectoryStore, read_csv, time_parameterize
+from ow_lander.trajectory import Trajectory, TrajectoryStore, read_csv
 from ow_msgs.msg import GuardedMoveResult, Operation
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.srv import (
@@ -294,26 +294,6 @@ class ArmServicesNode:
 
         return handler
 
-    def _timed(self, plan: OperationPlan) -> Trajectory:
-        timing = self.config.timing
-        scales = {"guarded": timing.guarded_velocity_scale}
-        dig_labels = {"descend", "pass_1", "shift", "pass_2", "dip_in", "cut", "lift_out", "sweep"}
-        segments = []
-        for segment in plan.segments:
-            scale = scales.get(segment.label, timing.velocity_scale)
-            if segment.label in dig_labels:
-                scale = timing.dig_velocity_scale
-            segments.append(type(segment)(segment.label, segment.waypoints, scale))
-        accel = np.array([timing.acceleration_limits[j] for j in ARM_JOINTS])
-        return time_parameterize(
-            segments,
-            ARM_JOINTS,
-            self.planner.velocity_limits,
-            accel,
-            timing.sample_period_s,
-            plan.operation,
-        )
-
     def _run_operation(self, name: str, request: Any, response_cls: Any) -> Any:
         response = response_cls()
         req = request_to_dict(request)
@@ -361,7 +341,7 @@ class ArmServicesNode:
         started = time.perf_counter()
         plan = self.operations.plan(name, q, terrain, req)
         notes.extend(plan.notes)
-        trajectory = self._timed(plan)
+        trajectory = plan.timed(self.config.timing, self.planner.velocity_limits)
         response.planning_time = time.perf_counter() - started
         parameters.update(plan.parameters)
         path = self.store.save(trajectory)

@@ -19,6 +19,7 @@ from typing import Any
 from ow_lander.description import ARM_JOINTS, DEFAULT_GROUND_Z
 from ow_lander.errors import ConfigError
 from ow_lander.params import Params
+from ow_lander.trajectory import Speed
 
 #: The shipped parameter file; its ``arm_services:`` section is the node's private namespace.
 CONFIG_FILE = Path(__file__).resolve().parents[2] / "config" / "arm_services.yaml"
@@ -115,6 +116,15 @@ class TimingConfig:
         default_factory=lambda: dict.fromkeys(ARM_JOINTS, DEFAULT_ACCELERATION)
     )
     sample_period_s: float = field(default=0.1, metadata=POSITIVE)
+
+    @property
+    def speed_scales(self) -> dict[Speed, float]:
+        """Fraction of the velocity limits of each segment speed class."""
+        return {
+            Speed.FREE: self.velocity_scale,
+            Speed.DIG: self.dig_velocity_scale,
+            Speed.GUARDED: self.guarded_velocity_scale,
+        }
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,9 @@
 """Timed joint trajectories: time parameterisation, CSV files, the node's trajectory directory.
 
-A plan is a list of :class:`PathSegment` (joint waypoints with a label and a speed scale). It is
-timed by :func:`time_parameterize` into a :class:`Trajectory` sampled every ``sample_period_s``,
-written as CSV by :class:`TrajectoryStore`.
+A plan is a list of :class:`PathSegment` (joint waypoints with a label and a :class:`Speed`). It
+is timed by :func:`time_parameterize`, which gives each speed class its fraction of the velocity
+limits, into a :class:`Trajectory` sampled every ``sample_period_s``, written as CSV by
+:class:`TrajectoryStore`.
 
 CSV format (one file per operation, UTF-8, comma separated)::
 
@@ -23,12 +24,13 @@ from __future__ import annotations
 
 import bisect
 import contextlib
+import enum
 import functools
 import json
 import os
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -100,6 +102,19 @@ class Spline:
         return position, velocity
 
 
+class Speed(enum.Enum):
+    """How fast a segment may move; timing gives each class its fraction of the velocity limits
+    (the arm services: ``timing/velocity_scale``, ``dig_velocity_scale``,
+    ``guarded_velocity_scale``)."""
+
+    #: Free space: approaches, retracts, lifts, stowing, pouring.
+    FREE = "free"
+    #: A tool in the ground: trench passes, cuts, sweeps.
+    DIG = "dig"
+    #: The guarded descent searching for the ground.
+    GUARDED = "guarded"
+
+
 @dataclass(frozen=True)
 class PathSegment:
     """A geometric path: joint waypoints the arm passes through, with straight lines between.
@@ -107,12 +122,12 @@ class PathSegment:
     Attributes:
         label: name of the motion, e.g. ``approach`` or ``pass_1``.
         waypoints: (n, k) rad, n >= 1 joint vectors, columns in the order of the plan's joints.
-        speed_scale: fraction (0, 1] of the velocity limits used on this segment.
+        speed: the speed class of the motion, which timing turns into a velocity scale.
     """
 
     label: str
     waypoints: FloatArray
-    speed_scale: float = 1.0
+    speed: Speed = Speed.FREE
 
 
 @dataclass(frozen=True)
@@ -237,13 +252,14 @@ def time_parameterize(
     acceleration_limits: FloatArray,
     sample_period_s: float,
     operation: str = "",
+    speed_scales: Mapping[Speed, float] | None = None,
 ) -> Trajectory:
     """Time a plan: rest-to-rest trapezoids along each straight-ish piece of each segment.
 
     Every piece (a segment split where it turns sharply) is traversed with all joints
     synchronised along the path: the path rate is limited so that no joint exceeds its velocity
-    limit times the segment's ``speed_scale`` nor its acceleration limit (on straight lines; at
-    the shallow bends of a Cartesian path the acceleration can exceed it slightly).
+    limit times the scale of the segment's speed class nor its acceleration limit (on straight
+    lines; at the shallow bends of a Cartesian path the acceleration can exceed it slightly).
 
     Args:
         segments: the plan, in order; each segment starts where the previous one ended.
@@ -252,6 +268,8 @@ def time_parameterize(
         acceleration_limits: (k,) rad/s^2.
         sample_period_s: s, time between output rows (segment ends are always rows).
         operation: stored in the trajectory.
+        speed_scales: fraction (0, 1] of the velocity limits for each speed class; None: the
+            full limits for every class.
 
     Returns:
         The timed trajectory; its first row is the first waypoint at t = 0.
@@ -278,7 +296,7 @@ def time_parameterize(
                 f"expected (n, {len(joints)})"
             )
             raise TrajectoryError(msg)
-        v_scaled = vmax * segment.speed_scale
+        v_scaled = vmax * (1.0 if speed_scales is None else speed_scales[segment.speed])
         if len(points) < 2:
             continue
         for piece in _split_at_corners(points, v_scaled):
