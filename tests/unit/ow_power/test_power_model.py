@@ -7,11 +7,9 @@ import numpy as np
 import pytest
 import yaml
 
-from ow_power.config import PowerConfig, RecorderConfig
+from ow_power.config import CONFIG_FILE, PowerConfig, RecorderConfig
 from ow_power.errors import ConfigError, PowerError
 from ow_power.model import PowerIntegrator, integrate_j, intervals_s, joint_power
-
-CONFIG_YAML = Path(__file__).resolve().parents[3] / "src" / "ow_power" / "config" / "power.yaml"
 
 
 def test_joint_power_is_looked_up_by_name_in_the_requested_order():
@@ -97,7 +95,9 @@ def test_a_bad_sample_adds_nothing():
 
 
 def test_the_workspace_yaml_is_valid_and_holds_the_defaults():
-    document = yaml.safe_load(CONFIG_YAML.read_text())
+    in_the_workspace = Path(__file__).resolve().parents[3] / "src/ow_power/config/power.yaml"
+    assert in_the_workspace == CONFIG_FILE
+    document = yaml.safe_load(CONFIG_FILE.read_text())
     assert PowerConfig.from_dict(document["power"]) == PowerConfig()
     assert RecorderConfig.from_dict(document["record"]) == RecorderConfig()
 
@@ -105,24 +105,49 @@ def test_the_workspace_yaml_is_valid_and_holds_the_defaults():
 @pytest.mark.parametrize(
     ("cls", "params", "match"),
     [
-        (PowerConfig, {"auxiliary_power_W": 1.0}, "unknown parameter 'auxiliary_power_W'"),
-        (PowerConfig, {"auxiliary_power_w": "43"}, "'auxiliary_power_w' must be a number"),
-        (PowerConfig, {"auxiliary_power_w": -1.0}, "'auxiliary_power_w' = -1.0 is outside"),
-        (PowerConfig, {"motor_efficiency": 0.0}, "'motor_efficiency' = 0.0 is outside \\(0.0"),
-        (PowerConfig, {"motor_efficiency": 1.5}, "'motor_efficiency' = 1.5 is outside"),
-        (PowerConfig, {"max_dt_s": True}, "'max_dt_s' must be a number"),
-        (PowerConfig, {"joints": "j_shou_yaw"}, "'joints' must be a list"),
-        (PowerConfig, {"joints": ["a", "a"]}, "'joints' lists a name twice"),
-        (RecorderConfig, {"compression": "lz4"}, "'compression' = 'lz4' is not one of"),
-        (RecorderConfig, {"topics": []}, "'topics' is empty"),
-        (RecorderConfig, {"prefix": "a/b"}, "'prefix' = 'a/b'"),
-        (RecorderConfig, {"split_size_mb": -1}, "'split_size_mb' = -1.0 is outside"),
-        (RecorderConfig, {"queue_size": 0}, "'queue_size' must be an integer >= 1"),
+        (
+            PowerConfig,
+            {"auxiliary_power_W": 1.0},
+            "unknown key 'power/auxiliary_power_W' \\(did you mean 'auxiliary_power_w'\\?\\)",
+        ),
+        (PowerConfig, {"auxiliary_power_w": "43"}, "power/auxiliary_power_w must be a number"),
+        (
+            PowerConfig,
+            {"auxiliary_power_w": -1.0},
+            "power/auxiliary_power_w = -1 W is outside \\[0, inf\\] W",
+        ),
+        (
+            PowerConfig,
+            {"motor_efficiency": 0.0},
+            "power/motor_efficiency = 0 is outside \\(0, 1\\]",
+        ),
+        (PowerConfig, {"motor_efficiency": 1.5}, "power/motor_efficiency = 1.5 is outside"),
+        (PowerConfig, {"max_dt_s": True}, "power/max_dt_s must be a number, got True"),
+        (PowerConfig, {"max_dt_s": 0}, "power/max_dt_s = 0 s is outside \\(0, inf\\] s"),
+        (PowerConfig, {"joints": "j_shou_yaw"}, "power/joints must be a list"),
+        (PowerConfig, {"joints": ["a", "a"]}, "power/joints lists a name twice"),
+        (RecorderConfig, {"compression": "lz4"}, "record/compression = 'lz4' is not one of none"),
+        (RecorderConfig, {"topics": []}, "record/topics is empty"),
+        (RecorderConfig, {"prefix": "a/b"}, "record/prefix = 'a/b'"),
+        (RecorderConfig, {"split_size_mb": -1}, "record/split_size_mb = -1 MB is outside"),
+        (RecorderConfig, {"queue_size": 0}, "record/queue_size = 0 is outside \\[1, inf\\]"),
+        (RecorderConfig, {"queue_size": 2.5}, "record/queue_size must be an integer, got 2.5"),
+        (RecorderConfig, "ow", "record must be a mapping of names to values, got 'ow'"),
     ],
 )
 def test_config_errors_name_the_key(cls, params, match):
     with pytest.raises(ConfigError, match=match):
         cls.from_dict(params)
+
+
+def test_config_reports_every_problem_at_once():
+    with pytest.raises(ConfigError) as error:
+        RecorderConfig.from_dict({"prefix": "", "compresion": "bz2", "split_duration_s": -5})
+    lines = str(error.value).splitlines()
+    assert lines[0] == "3 problems in record:"
+    assert "  - record/prefix = '' must be a non-empty file name without '/'" in lines
+    assert "  - record/split_duration_s = -5 s is outside [0, inf] s" in lines
+    assert "  - unknown key 'record/compresion' (did you mean 'compression'?)" in lines
 
 
 def test_config_converts_types():

@@ -2,18 +2,25 @@
 
 The nodes read their private namespace once (``rospy.get_param("~")``) and pass the dict here;
 ``config/power.yaml`` holds the defaults below under the node names ``power`` and ``record``, so
-``rosparam load config/power.yaml`` configures both. A missing key takes its default; an unknown
-key, a wrong type or a value out of range raises :class:`~ow_power.errors.ConfigError` naming it.
+``rosparam load config/power.yaml`` configures both (:data:`CONFIG_FILE`). A missing key takes its
+default; unknown keys, wrong types and values out of range are validated by the workspace's
+:class:`ow_lander.params.Params` and reported together in one
+:class:`~ow_power.errors.ConfigError` naming each key (``power/max_dt_s``, ``record/prefix``).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
+from ow_lander.params import Params
 from ow_power.errors import ConfigError
+
+#: The power and recorder nodes' parameter file (``src/ow_power/config/power.yaml``): one
+#: section per node, ``power:`` and ``record:``.
+CONFIG_FILE = Path(__file__).resolve().parents[2] / "config" / "power.yaml"
 
 #: Topics the recorder records by default (missing ones are simply absent from the bag).
 DEFAULT_RECORD_TOPICS: tuple[str, ...] = (
@@ -29,56 +36,6 @@ DEFAULT_RECORD_TOPICS: tuple[str, ...] = (
 #: Bag compressions the recorder writes. LZ4 is refused: ROS's own lz4 reader cannot read the
 #: LZ4 chunks rosbags writes (see ENVIRONMENT.md).
 COMPRESSIONS: tuple[str, ...] = ("none", "bz2")
-
-
-def _check_keys(cls: type, params: Mapping[str, Any]) -> None:
-    known = {f.name for f in fields(cls)}
-    unknown = sorted(set(params) - known)
-    if unknown:
-        msg = f"unknown parameter {unknown[0]!r} (known: {', '.join(sorted(known))})"
-        raise ConfigError(msg)
-
-
-def _number(
-    params: Mapping[str, Any],
-    key: str,
-    default: float,
-    *,
-    low: float = -math.inf,
-    low_inclusive: bool = True,
-    high: float = math.inf,
-) -> float:
-    """``params[key]`` as a finite float within [low, high] (or (low, high] when not inclusive)."""
-    value = params.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        msg = f"parameter {key!r} must be a number, got {value!r}"
-        raise ConfigError(msg)
-    value = float(value)
-    too_low = value < low if low_inclusive else value <= low
-    if not math.isfinite(value) or too_low or value > high:
-        bracket = "[" if low_inclusive else "("
-        msg = f"parameter {key!r} = {value} is outside {bracket}{low}, {high}]"
-        raise ConfigError(msg)
-    return value
-
-
-def _string(params: Mapping[str, Any], key: str, default: str) -> str:
-    value = params.get(key, default)
-    if not isinstance(value, str):
-        msg = f"parameter {key!r} must be a string, got {value!r}"
-        raise ConfigError(msg)
-    return value
-
-
-def _names(params: Mapping[str, Any], key: str, default: tuple[str, ...]) -> tuple[str, ...]:
-    value = params.get(key, list(default))
-    if not isinstance(value, list | tuple) or not all(isinstance(v, str) and v for v in value):
-        msg = f"parameter {key!r} must be a list of non-empty strings, got {value!r}"
-        raise ConfigError(msg)
-    if len(set(value)) != len(value):
-        msg = f"parameter {key!r} lists a name twice: {value!r}"
-        raise ConfigError(msg)
-    return tuple(value)
 
 
 @dataclass(frozen=True)
@@ -103,23 +60,27 @@ class PowerConfig:
     def from_dict(cls, params: Mapping[str, Any]) -> PowerConfig:
         """Validate a parameter dict (missing keys take their defaults).
 
+        Every problem is collected and reported at once; a misspelt key gets the nearest known
+        key as a suggestion.
+
+        Args:
+            params: the node's private namespace (a section of :data:`CONFIG_FILE`).
+
         Raises:
-            ConfigError: unknown key, wrong type or value out of range; the message names the key.
+            ConfigError: unknown keys, wrong types or values out of range; the message names
+                each key.
         """
-        _check_keys(cls, params)
-        return cls(
-            auxiliary_power_w=_number(params, "auxiliary_power_w", cls.auxiliary_power_w, low=0.0),
-            motor_efficiency=_number(
-                params,
-                "motor_efficiency",
-                cls.motor_efficiency,
-                low=0.0,
-                low_inclusive=False,
-                high=1.0,
+        p = Params(params, "power", ConfigError)
+        config = cls(
+            auxiliary_power_w=p.non_negative("auxiliary_power_w", cls.auxiliary_power_w, unit="W"),
+            motor_efficiency=p.number(
+                "motor_efficiency", cls.motor_efficiency, low=0.0, low_inclusive=False, high=1.0
             ),
-            joints=_names(params, "joints", cls.joints),
-            max_dt_s=_number(params, "max_dt_s", cls.max_dt_s, low=0.0, low_inclusive=False),
+            joints=p.names("joints", cls.joints),
+            max_dt_s=p.positive("max_dt_s", cls.max_dt_s, unit="s"),
         )
+        p.finish()
+        return config
 
 
 @dataclass(frozen=True)
@@ -148,35 +109,38 @@ class RecorderConfig:
     def from_dict(cls, params: Mapping[str, Any]) -> RecorderConfig:
         """Validate a parameter dict (missing keys take their defaults).
 
+        Every problem is collected and reported at once; a misspelt key gets the nearest known
+        key as a suggestion.
+
+        Args:
+            params: the node's private namespace (a section of :data:`CONFIG_FILE`).
+
         Raises:
-            ConfigError: unknown key, wrong type or value out of range; the message names the key.
+            ConfigError: unknown keys, wrong types or values out of range; the message names
+                each key.
         """
-        _check_keys(cls, params)
-        prefix = _string(params, "prefix", cls.prefix)
+        p = Params(params, "record", ConfigError)
+        prefix = p.string("prefix", cls.prefix)
         if not prefix or "/" in prefix:
-            msg = f"parameter 'prefix' = {prefix!r} must be a non-empty file name without '/'"
-            raise ConfigError(msg)
-        topics = _names(params, "topics", cls.topics)
+            p.problem(f"{p.name('prefix')} = {prefix!r} must be a non-empty file name without '/'")
+        topics = p.names("topics", cls.topics)
         if not topics:
-            msg = "parameter 'topics' is empty: nothing to record"
-            raise ConfigError(msg)
-        compression = _string(params, "compression", cls.compression).lower()
+            p.problem(f"{p.name('topics')} is empty: nothing to record")
+        compression = p.string("compression", cls.compression).lower()
         if compression not in COMPRESSIONS:
-            msg = (
-                f"parameter 'compression' = {compression!r} is not one of {COMPRESSIONS} "
-                "(lz4 bags written by rosbags are unreadable by ROS's rosbag tools)"
+            p.problem(
+                f"{p.name('compression')} = {compression!r} is not one of "
+                f"{', '.join(COMPRESSIONS)} (lz4 bags written by rosbags are unreadable by ROS's "
+                "rosbag tools)"
             )
-            raise ConfigError(msg)
-        queue_size = params.get("queue_size", cls.queue_size)
-        if isinstance(queue_size, bool) or not isinstance(queue_size, int) or queue_size < 1:
-            msg = f"parameter 'queue_size' must be an integer >= 1, got {queue_size!r}"
-            raise ConfigError(msg)
-        return cls(
-            output_dir=_string(params, "output_dir", cls.output_dir),
+        config = cls(
+            output_dir=p.string("output_dir", cls.output_dir),
             prefix=prefix,
             topics=topics,
-            split_duration_s=_number(params, "split_duration_s", cls.split_duration_s, low=0.0),
-            split_size_mb=_number(params, "split_size_mb", cls.split_size_mb, low=0.0),
+            split_duration_s=p.non_negative("split_duration_s", cls.split_duration_s, unit="s"),
+            split_size_mb=p.non_negative("split_size_mb", cls.split_size_mb, unit="MB"),
             compression=compression,
-            queue_size=queue_size,
+            queue_size=p.integer("queue_size", cls.queue_size, low=1),
         )
+        p.finish()
+        return config
