@@ -12,7 +12,7 @@ from ow_power.analysis import analyze, format_table, pair_operations, plot_power
 from ow_power.bagwriter import SplitBagWriter
 from ow_power.config import PowerConfig
 from ow_power.errors import AnalysisError, RecorderError
-from ow_power.synthetic import BagMessages, Segment, write_run
+from ow_power.synthetic import OW_MSGS_DIR, BagMessages, Segment, ow_typestore, write_run
 
 JOINTS = ("j_shou_yaw", "j_shou_pitch", "j_prox_pitch", "j_grinder")
 SEGMENTS = (
@@ -39,6 +39,18 @@ def _run(tmp_path, split_duration_s=0.0, with_power=True, compression="none"):
 def _count(bags, topic):
     with AnyReader(bags) as reader:
         return sum(1 for _ in reader.messages([c for c in reader.connections if c.topic == topic]))
+
+
+def test_the_typestore_has_every_ow_msgs_message_as_ros_generates_it():
+    import ow_msgs.msg
+
+    assert OW_MSGS_DIR.parts[-2:] == ("ow_msgs", "msg")
+    names = sorted(path.stem for path in OW_MSGS_DIR.glob("*.msg"))
+    assert "Power" in names and "Operation" in names
+    store = ow_typestore()
+    for name in names:
+        _, md5 = store.generate_msgdef(f"ow_msgs/msg/{name}")
+        assert md5 == getattr(ow_msgs.msg, name)._md5sum, name
 
 
 def test_a_run_is_split_into_closed_bags_that_rosbag_reads(tmp_path):
