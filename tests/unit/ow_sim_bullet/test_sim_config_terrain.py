@@ -6,22 +6,19 @@ import math
 
 import numpy as np
 import pytest
+import yaml
 from PIL import Image
 
-from ow_sim_bullet.config import SPEC_GAINS, SimConfig
+from ow_lander.description import DEFAULT_GROUND_Z, EUROPA_GRAVITY
+from ow_sim_bullet.config import PID_YAML, SIM_YAML, SPEC_GAINS, PidGains, SimConfig
 from ow_sim_bullet.errors import CommandError, ConfigError, TerrainSpecError
-from ow_sim_bullet.terrains import (
-    DEFAULT_GROUND_Z,
-    WORKSPACE_CENTRE,
-    europa,
-    parse_terrain_spec,
-)
+from ow_sim_bullet.terrains import WORKSPACE_CENTRE, europa, parse_terrain_spec
 from ow_sim_bullet.trajectory import ActiveTrajectory, JointTrajectory
 
 
 def test_defaults_are_the_spec_gains_at_europa_gravity():
     config = SimConfig.from_dict({})
-    assert config.gravity == 1.315
+    assert config.gravity == EUROPA_GRAVITY == 1.315
     for joint, (p, i, d) in SPEC_GAINS.items():
         gains = config.gains[joint]
         assert (gains.p, gains.i, gains.d, gains.i_clamp) == (p, i, d, None)
@@ -44,32 +41,65 @@ def test_yaml_style_parameters_are_accepted():
     assert config.initial_positions["j_shou_yaw"] == -1.5
 
 
+def test_the_shipped_yaml_files_load_as_the_launch_file_loads_them():
+    """sim.launch loads sim.yaml, then pid.yaml, into the node's private namespace."""
+    raw = {**yaml.safe_load(SIM_YAML.read_text()), **yaml.safe_load(PID_YAML.read_text())}
+    assert set(raw) >= {"physics_rate_hz", "terrain", "initial_positions", "gains"}
+    config = SimConfig.from_dict(raw)
+    # The files ship the defaults.
+    assert config == SimConfig()
+
+
 @pytest.mark.parametrize(
     ("raw", "message"),
     [
-        ({"physics_rate": 100}, "unknown parameter(s) ['physics_rate']"),
-        ({"physics_rate_hz": 0}, "physics_rate_hz must be > 0"),
-        ({"real_time_factor": -1}, "real_time_factor must be >= 0"),
-        ({"gravity": "europa"}, "gravity must be a number"),
-        ({"gravity": math.nan}, "gravity must be finite"),
-        ({"start_paused": 1}, "start_paused must be true or false"),
-        ({"terrain": ""}, "terrain must be a non-empty string"),
-        ({"terrain_material": 300}, "terrain_material must be an integer 0..255"),
-        ({"terrain_file_center": [1.0]}, "terrain_file_center must be a list of two numbers"),
-        ({"terrain_png_height_range": [1.0, -1.0]}, "terrain_png_height_range must be increasing"),
+        ({"physics_rate": 100}, "unknown key 'sim/physics_rate' (did you mean 'physics_rate_hz'?)"),
+        ({"physics_rate_hz": 0}, "sim/physics_rate_hz = 0 Hz is outside (0, inf] Hz"),
+        ({"real_time_factor": -1}, "sim/real_time_factor = -1 is outside [0, inf]"),
+        ({"gravity": "europa"}, "sim/gravity must be a number, got 'europa'"),
+        ({"gravity": math.nan}, "sim/gravity must be finite"),
+        ({"start_paused": 1}, "sim/start_paused must be true or false, got 1"),
+        ({"terrain": ""}, "sim/terrain must be a non-empty string"),
+        ({"terrain_material": 300}, "sim/terrain_material = 300 is outside [0, 255]"),
+        ({"terrain_material": 1.5}, "sim/terrain_material must be an integer, got 1.5"),
+        (
+            {"terrain_file_center": [1.0]},
+            "sim/terrain_file_center must be a list of two numbers (m), got [1.0]",
+        ),
+        (
+            {"terrain_file_center": [1.0, "x"]},
+            "sim/terrain_file_center[1] must be a number, got 'x'",
+        ),
+        (
+            {"terrain_png_height_range": [1.0, -1.0]},
+            "sim/terrain_png_height_range must be increasing, got [1.0, -1.0]",
+        ),
+        ({"terrain_force_params": 3}, "sim/terrain_force_params must be a mapping, got 3"),
         (
             {"carve_full_force": 5.0},
-            "carve_full_force=5.0 N must exceed terrain_yield_force=10.0 N",
+            "sim/carve_full_force = 5 N must exceed sim/terrain_yield_force = 10 N",
         ),
         (
             {"gains": {"j_elbow": {"p": 1, "i": 0, "d": 0}}},
-            "gains has unknown joint(s) ['j_elbow']",
+            "sim/gains/j_elbow: unknown joint; joints: j_shou_yaw,",
         ),
-        ({"gains": {"j_shou_yaw": {"p": 1, "i": 0}}}, "gains.j_shou_yaw.d is missing"),
-        ({"gains": {"j_shou_yaw": {"p": -1, "i": 0, "d": 0}}}, "gains.j_shou_yaw.p must be >= 0"),
+        (
+            {"gains": {"j_shou_yaww": {"p": 1, "i": 0, "d": 0}}},
+            "sim/gains/j_shou_yaww: unknown joint (did you mean 'j_shou_yaw'?)",
+        ),
+        ({"gains": {"j_shou_yaw": {"p": 1, "i": 0}}}, "sim/gains/j_shou_yaw/d is missing"),
+        (
+            {"gains": {"j_shou_yaw": {"p": -1, "i": 0, "d": 0}}},
+            "sim/gains/j_shou_yaw/p = -1 N m/rad is outside [0, inf] N m/rad",
+        ),
+        (
+            {"gains": {"j_shou_yaw": {"p": 1, "i": 0, "d": 0, "iclamp": 3}}},
+            "unknown key 'sim/gains/j_shou_yaw/iclamp' (did you mean 'i_clamp'?)",
+        ),
+        ({"gains": {"j_shou_yaw": 5}}, "sim/gains/j_shou_yaw must be a mapping, got 5"),
         (
             {"initial_positions": {"j_shou_yaw": "up"}},
-            "initial_positions.j_shou_yaw must be a number",
+            "sim/initial_positions/j_shou_yaw must be a number, got 'up'",
         ),
     ],
 )
@@ -77,6 +107,40 @@ def test_bad_parameters_name_the_key(raw, message):
     with pytest.raises(ConfigError) as error:
         SimConfig.from_dict(raw)
     assert message in str(error.value)
+
+
+def test_every_bad_parameter_is_reported_at_once():
+    with pytest.raises(ConfigError) as error:
+        SimConfig.from_dict({"gravity": -1.0, "tf_rate": 30, "gains": {"j_grinder": {"p": 1}}})
+    text = str(error.value)
+    assert text.startswith("4 problems in sim:")
+    for part in (
+        "sim/gravity = -1 m/s^2",
+        "unknown key 'sim/tf_rate' (did you mean 'tf_rate_hz'?)",
+        "sim/gains/j_grinder/i is missing",
+        "sim/gains/j_grinder/d is missing",
+    ):
+        assert part in text
+
+
+@pytest.mark.parametrize(
+    ("raw", "message"),
+    [
+        ({"p": 1.0, "i": 0.0}, "gains of j_x/d is missing"),
+        ({"p": 1.0, "i": 0.0, "d": 0.0, "i_clamp": -2.0}, "gains of j_x/i_clamp = -2 N m"),
+        ({"p": 1.0, "i": 0.0, "d": 0.0, "q": 1.0}, "unknown key 'gains of j_x/q'"),
+        ([1.0, 0.0, 0.0], "gains of j_x must be a mapping of names to values"),
+    ],
+)
+def test_bad_gains_of_one_joint_name_the_gain(raw, message):
+    with pytest.raises(ConfigError) as error:
+        PidGains.from_dict(raw, "gains of j_x")
+    assert message in str(error.value)
+
+
+def test_gains_of_one_joint():
+    assert PidGains.from_dict({"p": 2, "i": 0.5, "d": 1}, "g") == PidGains(2.0, 0.5, 1.0, None)
+    assert PidGains.from_dict({"p": 2, "i": 0, "d": 1, "i_clamp": 3}, "g").i_clamp == 3.0
 
 
 def test_flat_and_europa_specs():

@@ -1,19 +1,26 @@
 """Simulation parameters: validated once, at start-up, into frozen dataclasses.
 
-:func:`SimConfig.from_dict` takes the node's private parameters (the YAML files ``config/sim.yaml``
-and ``config/pid.yaml``) and raises :class:`ConfigError` naming the first bad key. Nothing else in
-the package reads parameters.
+:func:`SimConfig.from_dict` takes the node's private parameters (the YAML files :data:`SIM_YAML`
+and :data:`PID_YAML`) and raises :class:`ConfigError` listing every bad key at once
+(:class:`ow_lander.params.Params`). Nothing else in the package reads parameters.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
-from ow_lander.description import ALL_JOINTS, STOWED
+from ow_lander.description import ALL_JOINTS, EUROPA_GRAVITY, STOWED
+from ow_lander.params import Params, suggest
 from ow_sim_bullet.errors import ConfigError
+
+#: The package's shipped parameter files, loaded into the node's private namespace by
+#: ``launch/sim.launch`` (sim.yaml's keys at top level, then pid.yaml's ``gains:``).
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
+SIM_YAML = CONFIG_DIR / "sim.yaml"
+PID_YAML = CONFIG_DIR / "pid.yaml"
 
 #: N m / rad, N m / (rad s), N m s / rad: spec section 4.2 (OceanWATERS v6.0 lander_control.yaml).
 SPEC_GAINS: dict[str, tuple[float, float, float]] = {
@@ -59,65 +66,73 @@ class PidGains:
     i_clamp: float | None = None
 
     @classmethod
-    def from_dict(cls, raw: Any, key: str) -> PidGains:
-        """Validate ``{p, i, d[, i_clamp]}`` found under parameter ``key``.
+    def from_dict(cls, raw: Any, where: str) -> PidGains:
+        """Validate ``{p, i, d[, i_clamp]}`` given for one joint.
+
+        Args:
+            raw: the gains mapping.
+            where: how messages name the mapping (``"gains of j_shou_yaw"``).
 
         Raises:
-            ConfigError: a gain is missing, not a number, negative or not finite.
+            ConfigError: not a mapping, or gains missing, not numbers, negative, not finite or
+                unknown (every problem listed).
         """
-        if not isinstance(raw, Mapping):
-            msg = f"{key} must be a mapping with p, i, d (and optionally i_clamp), got {raw!r}"
-            raise ConfigError(msg)
-        unknown = set(raw) - {"p", "i", "d", "i_clamp"}
-        if unknown:
-            msg = f"{key} has unknown keys {sorted(unknown)}; allowed: p, i, d, i_clamp"
-            raise ConfigError(msg)
+        params = Params(raw, where, ConfigError)
+        gains = cls.read(params)
+        params.finish()  # also names unknown keys
+        return gains
+
+    @classmethod
+    def read(cls, params: Params) -> PidGains:
+        """Read the gains from ``params``; problems are recorded for its root's
+        :meth:`~ow_lander.params.Params.finish` (unknown keys are the caller's to check)."""
         values = {}
-        for name in ("p", "i", "d"):
-            if name not in raw:
-                msg = f"{key}.{name} is missing"
-                raise ConfigError(msg)
-            values[name] = _non_negative(raw[name], f"{key}.{name}")
-        i_clamp = raw.get("i_clamp")
+        for name, unit in (("p", "N m/rad"), ("i", "N m/(rad s)"), ("d", "N m s/rad")):
+            if not params.has(name):
+                params.problem(f"{params.name(name)} is missing")
+            values[name] = params.non_negative(name, 0.0, unit)
+        i_clamp = params.raw("i_clamp")
         return cls(
             values["p"],
             values["i"],
             values["d"],
-            None if i_clamp is None else _non_negative(i_clamp, f"{key}.i_clamp"),
+            None
+            if i_clamp is None
+            else params.check_number(i_clamp, params.name("i_clamp"), 0.0, low=0.0, unit="N m"),
         )
 
 
-def _number(value: Any, key: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        msg = f"{key} must be a number, got {value!r}"
-        raise ConfigError(msg)
-    if not math.isfinite(value):
-        msg = f"{key} must be finite, got {value!r}"
-        raise ConfigError(msg)
-    return float(value)
-
-
-def _non_negative(value: Any, key: str) -> float:
-    number = _number(value, key)
-    if number < 0:
-        msg = f"{key} must be >= 0, got {number}"
-        raise ConfigError(msg)
-    return number
-
-
-def _positive(value: Any, key: str) -> float:
-    number = _number(value, key)
-    if number <= 0:
-        msg = f"{key} must be > 0, got {number}"
-        raise ConfigError(msg)
-    return number
-
-
-def _pair(value: Any, key: str) -> tuple[float, float]:
+def _pair(params: Params, key: str, default: tuple[float, float], unit: str) -> tuple[float, float]:
+    """``key`` as a list of two finite numbers."""
+    value = params.raw(key, list(default))
     if not isinstance(value, list | tuple) or len(value) != 2:
-        msg = f"{key} must be a list of two numbers, got {value!r}"
-        raise ConfigError(msg)
-    return _number(value[0], f"{key}[0]"), _number(value[1], f"{key}[1]")
+        params.problem(f"{params.name(key)} must be a list of two numbers ({unit}), got {value!r}")
+        return default
+    first, second = (
+        params.check_number(v, f"{params.name(key)}[{i}]", default[i], unit=unit)
+        for i, v in enumerate(value)
+    )
+    return first, second
+
+
+def _non_empty(params: Params, key: str, default: str) -> str:
+    value = params.string(key, default)
+    if not value:
+        params.problem(f"{params.name(key)} must be a non-empty string")
+        return default
+    return value
+
+
+def _joint_section(params: Params, key: str) -> Params:
+    """The mapping ``key`` of joint names, its unknown joints recorded as problems."""
+    section = params.section(key)
+    for joint in section.values:
+        if joint not in ALL_JOINTS:
+            section.problem(
+                f"{section.name(str(joint))}: unknown joint{suggest(str(joint), ALL_JOINTS)}; "
+                f"joints: {', '.join(ALL_JOINTS)}"
+            )
+    return section
 
 
 def _default_gains() -> dict[str, PidGains]:
@@ -171,7 +186,7 @@ class SimConfig:
 
     physics_rate_hz: float = 100.0
     real_time_factor: float = 1.0
-    gravity: float = 1.315
+    gravity: float = EUROPA_GRAVITY
     start_paused: bool = False
     gravity_feedforward: bool = True
     tool_contact: bool = True
@@ -208,109 +223,67 @@ class SimConfig:
             raw: parameter name -> value, as ``rospy.get_param('~')`` returns them.
 
         Raises:
-            ConfigError: unknown key, wrong type or out-of-range value, naming the key.
+            ConfigError: unknown keys, wrong types or out-of-range values, every one named with
+                its key (``sim/<key>``) in one message; a misspelt key gets the nearest known one.
         """
-        defaults = cls()
-        allowed = set(cls.__dataclass_fields__)
-        unknown = sorted(set(raw) - allowed)
-        if unknown:
-            msg = f"unknown parameter(s) {unknown}; known: {sorted(allowed)}"
-            raise ConfigError(msg)
-        kwargs: dict[str, Any] = {}
-        positive = (
-            "physics_rate_hz",
-            "gravity",
-            "terrain_file_resolution",
-            "carve_period",
-            "joint_state_rate_hz",
-            "clock_rate_hz",
-            "tf_rate_hz",
-            "wrench_rate_hz",
-            "tool_state_rate_hz",
+        d = cls()
+        p = Params(raw, "sim", ConfigError)
+        gains_section = _joint_section(p, "gains")
+        gains = dict(d.gains)
+        for joint in gains_section.values:
+            if joint in ALL_JOINTS:
+                joint_gains = gains_section.section(joint)
+                gains[joint] = PidGains.read(joint_gains)
+                joint_gains.check_unknown()
+        initial_section = _joint_section(p, "initial_positions")
+        initial = dict(d.initial_positions)
+        for joint in initial_section.values:
+            if joint in ALL_JOINTS:
+                initial[joint] = initial_section.number(joint, initial[joint], unit="rad")
+        force_params = p.raw("terrain_force_params", {})
+        if not isinstance(force_params, Mapping):
+            p.problem(f"{p.name('terrain_force_params')} must be a mapping, got {force_params!r}")
+            force_params = {}
+        config = cls(
+            physics_rate_hz=p.positive("physics_rate_hz", d.physics_rate_hz, "Hz"),
+            real_time_factor=p.non_negative("real_time_factor", d.real_time_factor),
+            gravity=p.positive("gravity", d.gravity, "m/s^2"),
+            start_paused=p.boolean("start_paused", d.start_paused),
+            gravity_feedforward=p.boolean("gravity_feedforward", d.gravity_feedforward),
+            tool_contact=p.boolean("tool_contact", d.tool_contact),
+            terrain=_non_empty(p, "terrain", d.terrain),
+            terrain_file_resolution=p.positive(
+                "terrain_file_resolution", d.terrain_file_resolution, "m"
+            ),
+            terrain_file_center=_pair(p, "terrain_file_center", d.terrain_file_center, "m"),
+            terrain_png_height_range=_pair(
+                p, "terrain_png_height_range", d.terrain_png_height_range, "m"
+            ),
+            terrain_material=p.integer("terrain_material", d.terrain_material, low=0, high=255),
+            terrain_yield_force=p.non_negative("terrain_yield_force", d.terrain_yield_force, "N"),
+            carve_step=p.non_negative("carve_step", d.carve_step, "m"),
+            carve_full_force=p.non_negative("carve_full_force", d.carve_full_force, "N"),
+            carve_period=p.positive("carve_period", d.carve_period, "s"),
+            terrain_forces=_non_empty(p, "terrain_forces", d.terrain_forces),
+            terrain_force_params=dict(force_params),
+            joint_state_rate_hz=p.positive("joint_state_rate_hz", d.joint_state_rate_hz, "Hz"),
+            clock_rate_hz=p.positive("clock_rate_hz", d.clock_rate_hz, "Hz"),
+            tf_rate_hz=p.positive("tf_rate_hz", d.tf_rate_hz, "Hz"),
+            wrench_rate_hz=p.positive("wrench_rate_hz", d.wrench_rate_hz, "Hz"),
+            tool_state_rate_hz=p.positive("tool_state_rate_hz", d.tool_state_rate_hz, "Hz"),
+            terrain_publish_period=p.non_negative(
+                "terrain_publish_period", d.terrain_publish_period, "s"
+            ),
+            gains=gains,
+            initial_positions=initial,
         )
-        for key in positive:
-            if key in raw:
-                kwargs[key] = _positive(raw[key], key)
-        for key in (
-            "real_time_factor",
-            "terrain_yield_force",
-            "carve_step",
-            "carve_full_force",
-            "terrain_publish_period",
-        ):
-            if key in raw:
-                kwargs[key] = _non_negative(raw[key], key)
-        for key in ("terrain_file_center", "terrain_png_height_range"):
-            if key in raw:
-                kwargs[key] = _pair(raw[key], key)
-        for key in ("terrain", "terrain_forces"):
-            if key in raw:
-                if not isinstance(raw[key], str) or not raw[key]:
-                    msg = f"{key} must be a non-empty string, got {raw[key]!r}"
-                    raise ConfigError(msg)
-                kwargs[key] = raw[key]
-        for key in ("start_paused", "gravity_feedforward", "tool_contact"):
-            if key in raw:
-                if not isinstance(raw[key], bool):
-                    msg = f"{key} must be true or false, got {raw[key]!r}"
-                    raise ConfigError(msg)
-                kwargs[key] = raw[key]
-        if "terrain_material" in raw:
-            material = raw["terrain_material"]
-            if (
-                isinstance(material, bool)
-                or not isinstance(material, int)
-                or not 0 <= material < 256
-            ):
-                msg = f"terrain_material must be an integer 0..255, got {material!r}"
-                raise ConfigError(msg)
-            kwargs["terrain_material"] = material
-        if "terrain_force_params" in raw:
-            if not isinstance(raw["terrain_force_params"], Mapping):
-                msg = f"terrain_force_params must be a mapping, got {raw['terrain_force_params']!r}"
-                raise ConfigError(msg)
-            kwargs["terrain_force_params"] = dict(raw["terrain_force_params"])
-        if "gains" in raw:
-            kwargs["gains"] = _gains(raw["gains"], defaults.gains)
-        if "initial_positions" in raw:
-            kwargs["initial_positions"] = _initial(raw["initial_positions"], defaults)
-        yield_force = kwargs.get("terrain_yield_force", defaults.terrain_yield_force)
-        full_force = kwargs.get("carve_full_force", defaults.carve_full_force)
-        if full_force <= yield_force:
-            msg = f"carve_full_force={full_force} N must exceed terrain_yield_force={yield_force} N"
-            raise ConfigError(msg)
-        png_low, png_high = kwargs.get(
-            "terrain_png_height_range", defaults.terrain_png_height_range
-        )
-        if png_high <= png_low:
-            msg = f"terrain_png_height_range must be increasing, got {[png_low, png_high]}"
-            raise ConfigError(msg)
-        return cls(**kwargs)
-
-
-def _gains(raw: Any, defaults: Mapping[str, PidGains]) -> dict[str, PidGains]:
-    if not isinstance(raw, Mapping):
-        msg = f"gains must be a mapping joint -> {{p, i, d}}, got {raw!r}"
-        raise ConfigError(msg)
-    unknown = sorted(set(raw) - set(ALL_JOINTS))
-    if unknown:
-        msg = f"gains has unknown joint(s) {unknown}; joints: {list(ALL_JOINTS)}"
-        raise ConfigError(msg)
-    gains = dict(defaults)
-    for joint, value in raw.items():
-        gains[joint] = PidGains.from_dict(value, f"gains.{joint}")
-    return gains
-
-
-def _initial(raw: Any, defaults: SimConfig) -> dict[str, float]:
-    if not isinstance(raw, Mapping):
-        msg = f"initial_positions must be a mapping joint -> rad, got {raw!r}"
-        raise ConfigError(msg)
-    unknown = sorted(set(raw) - set(ALL_JOINTS))
-    if unknown:
-        msg = f"initial_positions has unknown joint(s) {unknown}; joints: {list(ALL_JOINTS)}"
-        raise ConfigError(msg)
-    initial = dict(defaults.initial_positions)
-    for joint, value in raw.items():
-        initial[joint] = _number(value, f"initial_positions.{joint}")
-    return initial
+        if config.carve_full_force <= config.terrain_yield_force:
+            p.problem(
+                f"{p.name('carve_full_force')} = {config.carve_full_force:g} N must exceed "
+                f"{p.name('terrain_yield_force')} = {config.terrain_yield_force:g} N"
+            )
+        low, high = config.terrain_png_height_range
+        if high <= low:
+            p.problem(f"{p.name('terrain_png_height_range')} must be increasing, got {[low, high]}")
+        p.finish()
+        return config

@@ -14,14 +14,13 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from ow_lander.description import DEFAULT_GROUND_Z
 from ow_lander.errors import TerrainError
 from ow_lander.terrain import HeightMap
 from ow_sim_bullet.errors import TerrainSpecError
 
 FloatArray = npt.NDArray[np.float64]
 
-#: m, z of the reference default ground (OceanWATERS DEFAULT_GROUND_HEIGHT at v6.0).
-DEFAULT_GROUND_Z = -0.155
 #: m, grid of the generated terrains.
 GRID_RESOLUTION = 0.04
 GRID_X = (-1.5, 3.5)
