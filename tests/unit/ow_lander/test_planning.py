@@ -3,12 +3,13 @@
 import numpy as np
 import pytest
 
-from ow_lander.config import ArmServicesConfig, PlannerConfig
+from ow_lander.config import PlannerConfig
 from ow_lander.description import DEFAULT_GROUND_Z, UNSTOWED
-from ow_lander.errors import ConfigError, PlanningError
+from ow_lander.errors import PlanningError
 from ow_lander.model import LanderModel
-from ow_lander.planning import ArmPlanner, CheckContext, densify
+from ow_lander.planning import ArmPlanner, CheckContext
 from ow_lander.terrain import HeightMap
+from ow_lander.validity import densify
 
 
 @pytest.fixture(scope="module")
@@ -72,33 +73,3 @@ def test_invalid_goal_is_explained(planner, ctx):
     goal[1] = 5.0
     with pytest.raises(PlanningError, match=r"j_shou_pitch=5\.000 rad is outside"):
         planner.plan_free(start, goal, ctx)
-
-
-@pytest.mark.parametrize(
-    ("values", "message"),
-    [
-        ({"bogus": 1}, "unknown parameter 'bogus'"),
-        ({"planner": {"seed": 0}}, "'planner/seed' must be > 0"),
-        ({"planner": {"rrt_range_rad": "far"}}, "'planner/rrt_range_rad' must be a number"),
-        ({"timing": {"velocity_scale": 2.0}}, "'timing/velocity_scale' must be in (0, 1]"),
-        ({"timing": {"acceleration_limits": {"j_x": 1.0}}}, "unknown arm joint"),
-        ({"plan_and_execute": 1}, "'plan_and_execute' must be true or false"),
-    ],
-)
-def test_config_errors_name_the_key(values, message):
-    with pytest.raises(ConfigError) as error:
-        ArmServicesConfig.from_dict(values)
-    assert message in str(error.value)
-
-
-def test_config_defaults_and_overrides():
-    config = ArmServicesConfig.from_dict(
-        {
-            "plan_and_execute": True,
-            "planner": {"seed": 7},
-            "timing": {"acceleration_limits": {"j_shou_yaw": 0.5}},
-        }
-    )
-    assert config.plan_and_execute and config.planner.seed == 7
-    assert config.timing.acceleration_limits["j_shou_yaw"] == 0.5
-    assert config.timing.acceleration_limits["j_prox_pitch"] == 0.2

@@ -12,8 +12,9 @@ from ow_lander.config import PlannerConfig
 from ow_lander.description import DEFAULT_GROUND_Z, UNSTOWED
 from ow_lander.errors import PlanningError
 from ow_lander.model import LanderModel
-from ow_lander.planning import ArmPlanner, CheckContext, _coarse_to_fine
+from ow_lander.planning import ArmPlanner, CheckContext
 from ow_lander.terrain import HeightMap
+from ow_lander.validity import _coarse_to_fine
 
 
 @pytest.fixture(scope="module")

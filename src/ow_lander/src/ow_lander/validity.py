@@ -1,0 +1,165 @@
+"""Validity of arm states and joint-space paths for the planner: joint limits and collisions with
+self, lander body, dock and terrain, paths checked state by state at a joint resolution. No ROS.
+
+States are arm vectors ``arm: (6,) rad`` in :data:`~ow_lander.description.ARM_JOINTS` order; the
+other joints (grinder, antenna) keep the values of a base configuration ``base: (9,)`` in
+pinocchio order (see :mod:`ow_lander.model`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from ow_lander.collision import ARM_LINKS
+from ow_lander.description import ARM_JOINTS
+from ow_lander.model import LanderModel
+from ow_lander.terrain import HeightMap
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class CheckContext:
+    """What a state is checked against.
+
+    Attributes:
+        base: (9,) rad, configuration giving the non-arm joints (grinder, antenna).
+        terrain: height map, or None for no terrain check.
+        terrain_links: links that must stay above the terrain (leave out a digging tool).
+        terrain_margin: m, clearance required above the terrain.
+    """
+
+    base: FloatArray
+    terrain: HeightMap | None
+    terrain_links: tuple[str, ...] = ARM_LINKS
+    terrain_margin: float = 0.0
+
+
+def densify(waypoints: FloatArray, resolution: float) -> FloatArray:
+    """(m, k) states along the polyline ``waypoints`` (n, k) with no joint step above
+    ``resolution`` rad; every waypoint is kept."""
+    points = np.asarray(waypoints, dtype=np.float64)
+    out = [points[:1]]
+    for a, b, n in zip(points[:-1], points[1:], segment_steps(points, resolution), strict=True):
+        w = np.arange(1, n + 1)[:, None] / n
+        out.append(a + w * (b - a))
+    return np.concatenate(out)
+
+
+def segment_steps(waypoints: FloatArray, resolution: float) -> list[int]:
+    """How many states :func:`densify` puts on each segment of ``waypoints`` (n, k)."""
+    largest = np.abs(np.diff(waypoints, axis=0)).max(axis=1, initial=0.0)
+    return [max(1, math.ceil(float(d) / resolution - 1e-9)) for d in largest]
+
+
+def _coarse_to_fine(n: int) -> npt.NDArray[np.intp]:
+    """The indices 0..n-1 in bisection order: 0, then the multiples of the largest power of two
+    below n, then the odd multiples of each smaller power of two in turn."""
+    index = np.arange(n)
+    # The largest power of two dividing each index (index 0 first of all).
+    lowest_bit = np.where(index == 0, n + 1, index & -index)
+    return np.argsort(-lowest_bit, kind="stable")
+
+
+class StateChecker:
+    """Arm states of one :class:`LanderModel`: to and from full configurations, joint limits,
+    and the validity of states and paths (not thread-safe, like the model).
+
+    Args:
+        model: kinematics and collision model.
+        resolution: rad, joint step at which paths are checked unless told otherwise.
+    """
+
+    def __init__(self, model: LanderModel, resolution: float) -> None:
+        self.model = model
+        self.resolution = resolution
+        self.idx = model.arm_idx
+        self.lower = model.lower[self.idx].copy()
+        self.upper = model.upper[self.idx].copy()
+        self._lower_tol = self.lower - 1e-9
+        self._upper_tol = self.upper + 1e-9
+        #: (index, lower, upper) of the joints whose range spans a full turn.
+        self._full_turn = [
+            (j, float(self.lower[j]), float(self.upper[j]))
+            for j in np.flatnonzero(self.upper - self.lower >= 2 * np.pi - 1e-6)
+        ]
+
+    def full(self, arm: FloatArray, base: FloatArray) -> FloatArray:
+        """(9,) rad configuration: ``base`` with the arm joints set to ``arm`` (6,)."""
+        q = np.array(base, dtype=np.float64)
+        q[self.idx] = arm
+        return q
+
+    def arm(self, q: FloatArray) -> FloatArray:
+        """(6,) rad arm joints of a (9,) configuration."""
+        return np.asarray(q, dtype=np.float64)[self.idx].copy()
+
+    def within_limits(self, arm: FloatArray) -> bool:
+        """True when every arm joint is within its URDF limits."""
+        return bool(((arm >= self._lower_tol) & (arm <= self._upper_tol)).all())
+
+    def is_valid(self, arm: FloatArray, ctx: CheckContext) -> bool:
+        """True when ``arm`` is within the joint limits and collision-free in ``ctx``."""
+        if not self.within_limits(arm):
+            return False
+        return not self.model.in_collision(
+            self.full(arm, ctx.base), ctx.terrain, ctx.terrain_links, ctx.terrain_margin
+        )
+
+    def explain(self, arm: FloatArray, ctx: CheckContext) -> str:
+        """Why ``arm`` is invalid, in words (joint limits or contacts)."""
+        q = self.full(arm, ctx.base)
+        problems = self.model.limit_violations(q, ARM_JOINTS)
+        report = self.model.collision_report(q, ctx.terrain, ctx.terrain_links, ctx.terrain_margin)
+        if report.in_collision:
+            problems.append(report.describe())
+        return "; ".join(problems) or "valid"
+
+    def first_invalid(
+        self, waypoints: FloatArray, ctx: CheckContext, resolution: float | None = None
+    ) -> FloatArray | None:
+        """The first invalid state along the polyline at ``resolution`` rad (default: the
+        checker's own), or None when the whole path is valid."""
+        states = densify(waypoints, resolution or self.resolution)
+        index = self.first_invalid_index(states, ctx)
+        return None if index is None else states[index]
+
+    def path_valid(
+        self, waypoints: FloatArray, ctx: CheckContext, resolution: float | None = None
+    ) -> bool:
+        """True when every state along the polyline at ``resolution`` rad (default: the
+        checker's own) is valid: the states of :meth:`first_invalid`, checked coarse to fine, so
+        that a blocked motion is usually rejected after a few checks."""
+        states = densify(waypoints, resolution or self.resolution)
+        return self.first_invalid_index(states[_coarse_to_fine(len(states))], ctx) is None
+
+    def first_invalid_index(self, states: FloatArray, ctx: CheckContext) -> int | None:
+        """The index of the first invalid row of ``states`` (m, 6) rad, or None."""
+        inside = np.all((states >= self._lower_tol) & (states <= self._upper_tol), axis=1)
+        q = np.array(ctx.base, dtype=np.float64)
+        in_collision = self.model.in_collision
+        for i, (arm, ok) in enumerate(zip(states, inside.tolist(), strict=True)):
+            if not ok:
+                return i
+            q[self.idx] = arm
+            if in_collision(q, ctx.terrain, ctx.terrain_links, ctx.terrain_margin):
+                return i
+        return None
+
+    def unwrap(self, arm: FloatArray, reference: FloatArray) -> FloatArray:
+        """``arm`` with each full-turn joint moved by whole turns to the value closest to
+        ``reference`` that stays within its limits."""
+        out = np.array(arm, dtype=np.float64)
+        for j, lower, upper in self._full_turn:
+            value = float(out[j])
+            turns = round((float(reference[j]) - value) / (2 * math.pi))
+            for k in (turns, turns - 1, turns + 1):
+                candidate = value + 2 * math.pi * k
+                if lower <= candidate <= upper:
+                    out[j] = candidate
+                    break
+        return out
