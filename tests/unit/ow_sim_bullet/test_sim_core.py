@@ -1,4 +1,6 @@
-"""The simulation core without ROS: control, holding, determinism, terrain contact and carving."""
+"""The simulation core without ROS: control, holding, determinism, terrain contact and carving,
+through BulletSim (its parts are tested on their own in test_joint_control, test_carving,
+test_tool_forces and test_tool_tracking)."""
 
 from __future__ import annotations
 
@@ -7,6 +9,7 @@ import pinocchio as pin
 import pybullet as pb
 import pytest
 
+from ow_dem_bridge.api import ToolState, Wrench
 from ow_lander.description import (
     ARM_JOINTS,
     SCOOP_ABOVE_GROUND,
@@ -16,8 +19,8 @@ from ow_lander.description import (
     URDF_PATH,
 )
 from ow_sim_bullet.config import SimConfig
-from ow_sim_bullet.errors import CommandError
-from ow_sim_bullet.sim_core import BulletSim
+from ow_sim_bullet.errors import CommandError, ConfigError
+from ow_sim_bullet.sim_core import BulletSim, make_force_model
 from ow_sim_bullet.terrains import flat
 from ow_sim_bullet.trajectory import JointTrajectory
 
@@ -187,38 +190,26 @@ def test_damping_torque_is_the_urdf_damping_on_a_slow_heavy_joint(sim):
     assert sim.sample.damping_effort[k] == pytest.approx(-50.0 * velocity, rel=0.05)
 
 
-def test_dig_progress_survives_a_moment_out_of_the_ground(sim):
-    X = pin.SE3.Identity()
-    zero = np.zeros(3)
-
-    def at(t, x, depth):
-        sim.time = t
-        return sim._track_dig("scoop", X, np.array([x, 0.0, -0.2]), zero, zero, depth)
-
-    at(0.0, 1.60, 0.03)
-    at(0.5, 1.65, 0.03)
-    # The carving ahead of the tip zeroes its depth for a moment: no state, but the cut goes on.
-    assert at(0.6, 1.66, 0.0) is None
-    assert at(0.7, 1.67, 0.02).progress == pytest.approx(0.07)
-    # Out for longer than DIG_END_GAP_S: the next dig starts from zero.
-    at(0.8, 1.70, 0.0)
-    at(2.0, 1.80, 0.0)
-    assert at(2.1, 1.81, 0.02).progress == pytest.approx(0.0)
-    assert at(2.2, 1.83, 0.02).progress == pytest.approx(0.02)
+class _Remote:
+    def wrench(self, state: ToolState) -> Wrench:
+        return Wrench(np.zeros(3), np.zeros(3))
 
 
-def test_implicit_step_solves_the_documented_equation(sim):
-    """The PID's implicit step solves (M + dt diag(dampers)) x = r (pinocchio's ABA with the
-    dampers as armature): the same x as numpy's dense solve with the mass matrix, for the
-    controllers' dampers and for the saturated step's, after which the dampers are restored."""
-    rng = np.random.default_rng(7)
-    data = sim._pin_model.createData()
-    saturated_dampers = sim._dampers.copy()
-    saturated_dampers[-1] = sim._damping[-1]  # a saturated joint loses its derivative damper
-    for _ in range(5):
-        q = rng.uniform(-2.0, 2.0, len(sim.names))
-        rhs = rng.normal(0.0, 10.0, len(sim.names))
-        mass = pin.crba(sim._pin_model, data, q)
-        for dampers in (saturated_dampers, sim._dampers):
-            expected = np.linalg.solve(mass + sim.dt * np.diag(dampers), rhs)
-            assert np.allclose(sim._implicit_solve(q, dampers, rhs), expected, rtol=1e-9, atol=1e-9)
+def test_force_models_come_from_ow_dem_bridge_and_the_remote_one_from_its_factory():
+    assert make_force_model("none", {}) is None
+    assert callable(make_force_model("table", {}).wrench)
+    given: list[dict] = []
+
+    def remote(params):
+        given.append(dict(params))
+        return _Remote()
+
+    model = make_force_model("bridge", {"topics": {}}, remote=("bridge", remote))
+    assert isinstance(model, _Remote) and given == [{"topics": {}}]
+    # The pure factory does not make the topic-backed model.
+    with pytest.raises(ConfigError, match="terrain_forces 'bridge': ow_dem_bridge could not"):
+        make_force_model("bridge", {})
+    with pytest.raises(ConfigError, match="terrain_forces 'tabel'"):
+        make_force_model("tabel", {})
+    with pytest.raises(ConfigError, match="has no wrench"):
+        make_force_model("odd", {}, remote=("odd", lambda params: object()))

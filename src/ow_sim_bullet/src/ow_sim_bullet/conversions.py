@@ -17,7 +17,7 @@ from geometry_msgs.msg import TransformStamped, WrenchStamped
 from ow_lander.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.msg import ToolState as ToolStateMsg
-from ow_sim_bullet.sim_core import FloatArray, ToolSnapshot
+from ow_sim_bullet.tool_tracking import FloatArray, ToolSnapshot
 
 Quaternion = tuple[float, float, float, float]  # x, y, z, w
 

@@ -39,8 +39,9 @@ from ow_msgs.srv import (
 from ow_sim_bullet import conversions, wire
 from ow_sim_bullet.config import CONTROLLER_NAMES, PidGains, SimConfig
 from ow_sim_bullet.errors import CommandError, SimError
-from ow_sim_bullet.sim_core import TOOLS, WRIST_FT_LINK, BulletSim, ToolSnapshot, make_force_model
+from ow_sim_bullet.sim_core import BulletSim, make_force_model
 from ow_sim_bullet.terrains import parse_terrain_spec
+from ow_sim_bullet.tool_tracking import TOOLS, WRIST_FT_LINK, ToolSnapshot
 from ow_sim_bullet.trajectory import JointTrajectory
 
 T = TypeVar("T")

@@ -14,7 +14,7 @@ import struct
 from collections.abc import Sequence
 
 from ow_sim_bullet.conversions import JointFrame, stamp_parts
-from ow_sim_bullet.sim_core import FloatArray
+from ow_sim_bullet.tool_tracking import FloatArray
 
 _U32 = struct.Struct("<I")
 _HEADER = struct.Struct("<3I")  # seq, stamp secs, stamp nsecs

@@ -1,0 +1,334 @@
+"""The joints' controllers: the paper's PID position controllers, trajectories, gravity feed-forward
+and the implicit damped step. No pybullet here: the caller measures the joints and applies the
+torques.
+
+Per joint and physics step (``dt``), the paper's effort PID position controller::
+
+    e = q_set - q;  integral = clip(integral + i e dt, +-i_clamp)   (not while saturated outward)
+    effort = clip(p e + integral + d (v_set - v_next), +-effort_limit)
+    damping = -c v_next                    (c: the URDF joint damping, a passive torque)
+
+``v_next`` is the joint velocity at the end of the step, predicted from the full joint-space
+inertia and bias (gravity + Coriolis) of pinocchio with the effort and damping treated implicitly
+(``(M + dt C) v_next = M v + dt (p e + integral + d v_set - bias)``, ``C = diag(d + c)``, solved
+by pinocchio's articulated-body algorithm with ``dt C`` as joint armature). This is backward Euler
+for the dampers, stable at any step even on the light wrist and scoop links, where the explicit
+form needs 1 kHz and the URDF damping applied explicitly by Bullet diverges. At rest ``v_next`` is
+0, so the holding effort is exactly the gravity torque. The caller applies effort + damping as
+joint torques, with the simulator's own joint damping off, so the energy the damping dissipates in
+a step is exactly ``-damping * v dt``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from ow_lander.description import ALL_JOINTS
+from ow_sim_bullet.config import PidGains
+from ow_sim_bullet.errors import CommandError, ConfigError
+from ow_sim_bullet.trajectory import ActiveTrajectory, JointTrajectory
+from ow_sim_bullet.urdf import UrdfJoint
+
+FloatArray = npt.NDArray[np.float64]
+IndexArray = npt.NDArray[np.intp]
+
+
+@dataclass(frozen=True)
+class JointSample:
+    """The joints at one instant, with the torques applied over the following step.
+
+    Attributes:
+        time: s of sim time.
+        names: joint names (the controller's order).
+        position: (9,) rad.
+        velocity: (9,) rad/s.
+        effort: (9,) N m, the controller's (motor) torque.
+        damping_effort: (9,) N m, the passive joint-damping torque; its power -damping * v is
+            dissipated.
+        setpoint: (9,) rad, the controllers' set-points.
+    """
+
+    time: float
+    names: tuple[str, ...]
+    position: FloatArray
+    velocity: FloatArray
+    effort: FloatArray
+    damping_effort: FloatArray
+    setpoint: FloatArray
+
+
+class JointController:
+    """One PID position controller per joint, with trajectories and the implicit damped step.
+
+    Every joint array (positions, velocities, torques) is in the order of :attr:`names`, which is
+    pinocchio's coordinate order, so no permutation is needed.
+
+    Args:
+        model: pinocchio model of the lander, gravity set (not modified).
+        joints: the URDF's joints by name (effort limits and damping of the movable ones).
+        gains: PID gains by joint name, for every joint of :data:`ALL_JOINTS`.
+        dt: s, the physics step.
+        gravity_feedforward: add the gravity torque of the measured pose to the PID output.
+
+    Raises:
+        ConfigError: the model's coordinates are not the nine one-dof joints.
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        joints: Mapping[str, UrdfJoint],
+        gains: Mapping[str, PidGains],
+        dt: float,
+        gravity_feedforward: bool,
+    ) -> None:
+        self.model = model
+        self.dt = dt
+        self.gravity_feedforward = gravity_feedforward
+        self._data = model.createData()
+        # The implicit step's linear solve (M + dt C) x = r is pinocchio's articulated-body
+        # algorithm on a copy of the model without gravity, at rest, with dt C as the joints'
+        # armature: then ABA returns exactly (M + dt C)^-1 r, in O(n) and for less than numpy's
+        # dense solve (plus the mass matrix) costs.
+        self._solve_model = pin.Model(model)
+        self._solve_model.gravity.linear = np.zeros(3)
+        self._solve_data = self._solve_model.createData()
+        order = sorted(ALL_JOINTS, key=lambda j: model.joints[model.getJointId(j)].idx_q)
+        if model.nq != len(ALL_JOINTS) or model.nv != len(ALL_JOINTS):
+            msg = f"expected {len(ALL_JOINTS)} one-dof joints, pinocchio has nq {model.nq}"
+            raise ConfigError(msg)
+        #: joint names in the order of every joint array of this class.
+        self.names: tuple[str, ...] = tuple(order)
+        n = len(self.names)
+        self._zeros = np.zeros(n)
+        self._effort_limit = np.array([joints[j].effort_limit for j in self.names])
+        self._negative_effort_limit = -self._effort_limit
+        self._damping = np.array([joints[j].damping for j in self.names])
+        self._negative_damping = -self._damping
+        self._kp = np.zeros(n)
+        self._ki = np.zeros(n)
+        self._kd = np.zeros(n)
+        self._i_clamp = np.zeros(n)
+        for joint in self.names:
+            self._set_gains_array(joint, gains[joint])
+        #: joint -> the trajectory it follows.
+        self._trajectories: dict[str, ActiveTrajectory] = {}
+        #: each followed trajectory with the indices of its joints that still follow it, in the
+        #: trajectory's and in our joint order (derived from ``_trajectories``).
+        self._followed: list[tuple[ActiveTrajectory, IndexArray, IndexArray]] = []
+        self._setpoint = np.zeros(n)
+        self._integral = np.zeros(n)
+
+    # ------------------------------------------------------------------ commands
+    def reset(self, positions: FloatArray) -> None:
+        """Hold ``positions`` (rad): set-points there, trajectories cleared.
+
+        Without gravity feed-forward the integral terms start at the gravity torque of
+        ``positions`` (for joints with an integral gain), as if the controllers had been holding
+        it: the arm does not sag at start. With it they start at zero.
+        """
+        self._setpoint = positions.copy()
+        self._trajectories.clear()
+        self._update_followed()
+        gravity = self.gravity_torque(positions)
+        preload = (self._ki > 0) & (not self.gravity_feedforward)
+        self._integral = np.where(preload, np.clip(gravity, -self._i_clamp, self._i_clamp), 0.0)
+
+    @property
+    def setpoint(self) -> FloatArray:
+        """(9,) rad, a copy of the set-points now."""
+        return self._setpoint.copy()
+
+    def set_setpoint(self, joint: str, position: float) -> None:
+        """Command one joint's position set-point (rad); cancels its trajectory.
+
+        Raises:
+            CommandError: unknown joint or non-finite position.
+        """
+        k = self._joint(joint)
+        if not math.isfinite(position):
+            msg = f"set-point {position} for {joint} is not finite; command ignored"
+            raise CommandError(msg)
+        if self._trajectories.pop(joint, None) is not None:
+            self._update_followed()
+        self._setpoint[k] = position
+
+    def set_trajectory(self, trajectory: JointTrajectory, now: float) -> None:
+        """Follow ``trajectory`` on its joints from sim time ``now`` (s), replacing any
+        trajectory they were following; it starts from their set-points.
+
+        Raises:
+            CommandError: the trajectory names an unknown joint.
+        """
+        start = np.array([self._setpoint[self._joint(j)] for j in trajectory.joints])
+        active = ActiveTrajectory(trajectory, start, now)
+        for joint in trajectory.joints:
+            self._trajectories[joint] = active
+        self._update_followed()
+
+    def _update_followed(self) -> None:
+        followed = []
+        for active in dict.fromkeys(self._trajectories.values()):
+            pairs = [
+                (i, self.names.index(joint))
+                for i, joint in enumerate(active.trajectory.joints)
+                if self._trajectories.get(joint) is active
+            ]
+            src, dst = np.array(pairs, dtype=np.intp).T
+            followed.append((active, src, dst))
+        self._followed = followed
+
+    def set_gains(self, joint: str, gains: PidGains) -> None:
+        """Change one joint's PID gains now; the integral is kept, within the new clamp.
+
+        Raises:
+            CommandError: unknown joint.
+        """
+        self._joint(joint)
+        self._set_gains_array(joint, gains)
+        self._integral = np.clip(self._integral, -self._i_clamp, self._i_clamp)
+
+    def gains(self, joint: str) -> PidGains:
+        """The gains one joint uses now (i_clamp resolved to N m).
+
+        Raises:
+            CommandError: unknown joint.
+        """
+        k = self._joint(joint)
+        return PidGains(
+            float(self._kp[k]), float(self._ki[k]), float(self._kd[k]), float(self._i_clamp[k])
+        )
+
+    def _set_gains_array(self, joint: str, gains: PidGains) -> None:
+        k = self.names.index(joint)
+        self._kp[k], self._ki[k], self._kd[k] = gains.p, gains.i, gains.d
+        self._i_clamp[k] = self._effort_limit[k] if gains.i_clamp is None else gains.i_clamp
+        self._negative_i_clamp = -self._i_clamp
+        #: N m s/rad, d + c: the dampers treated implicitly (diagonal of C).
+        self._dampers = self._kd + self._damping
+        self._dampers.flags.writeable = False
+        self._solve_model.armature = self.dt * self._dampers
+
+    def _joint(self, joint: str) -> int:
+        try:
+            return self.names.index(joint)
+        except ValueError:
+            msg = f"unknown joint {joint!r}; joints: {list(self.names)}"
+            raise CommandError(msg) from None
+
+    # ------------------------------------------------------------------ dynamics
+    @property
+    def dampers(self) -> FloatArray:
+        """(9,) N m s/rad, d + c: the derivative gains plus the URDF damping (read-only)."""
+        return self._dampers
+
+    @property
+    def damping(self) -> FloatArray:
+        """(9,) N m s/rad, the URDF joint damping c (a copy)."""
+        return self._damping.copy()
+
+    def gravity_torque(self, q: FloatArray) -> FloatArray:
+        """N m, the joint torques that hold positions ``q`` (rad) against gravity (RNEA at rest)."""
+        return self._bias(q, np.zeros_like(q))
+
+    def _gravity(self, q: FloatArray) -> FloatArray:
+        """N m, the feed-forward's gravity torque at ``q``."""
+        return np.array(pin.computeGeneralizedGravity(self.model, self._data, q))
+
+    def _bias(self, q: FloatArray, v: FloatArray) -> FloatArray:
+        """N m, gravity + Coriolis joint torques."""
+        return np.array(pin.rnea(self.model, self._data, q, v, self._zeros))
+
+    def implicit_solve(self, q: FloatArray, dampers: FloatArray, rhs: FloatArray) -> FloatArray:
+        """x with (M(q) + dt diag(dampers)) x = rhs, by ABA with ``dt dampers`` as armature.
+
+        Args:
+            q: (9,) rad.
+            dampers: (9,) N m s/rad; other than :attr:`dampers` (the same array) they are set
+                for this solve only.
+            rhs: (9,) N m.
+
+        Returns:
+            (9,) rad/s^2.
+        """
+        model = self._solve_model
+        if dampers is not self._dampers:
+            model.armature = self.dt * dampers
+        x = np.array(pin.aba(model, self._solve_data, q, self._zeros, rhs))
+        if dampers is not self._dampers:
+            model.armature = self.dt * self._dampers
+        return x
+
+    # ------------------------------------------------------------------ stepping
+    def follow(self, now: float) -> FloatArray:
+        """Move the set-points of joints following trajectories to sim time ``now`` (s); drop
+        the trajectories that ended.
+
+        Returns:
+            (9,) rad/s, the set-point velocities (0 for joints without a trajectory).
+        """
+        v_set = np.zeros(len(self.names))
+        if self._followed:
+            for active, src, dst in self._followed:
+                positions, velocities = active.sample(now)
+                self._setpoint[dst] = positions[src]
+                v_set[dst] = velocities[src]
+            if any(active.finished(now) for active, _, _ in self._followed):
+                for joint in [j for j, a in self._trajectories.items() if a.finished(now)]:
+                    del self._trajectories[joint]
+                self._update_followed()
+        return v_set
+
+    def control(
+        self, q: FloatArray, v: FloatArray, v_set: FloatArray, external: FloatArray | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """Motor effort and damping torque for this step; updates the integrals.
+
+        Args:
+            q: (9,) rad, measured positions.
+            v: (9,) rad/s, measured velocities.
+            v_set: (9,) rad/s, set-point velocities (:meth:`follow`).
+            external: (9,) N m, joint torques of the forces applied this step besides the motors
+                and dampers (contacts, terrain-force model), or None: the implicit step must know
+                them, or on a light link (the scoop) one step's acceleration would make the
+                dampers' torque jump, and a joint the terrain blocks would be predicted moving.
+
+        Returns:
+            (9,) N m effort (motor) and (9,) N m damping torque.
+        """
+        # (M + dt C) v_next = M v + dt (tau - bias) written for the acceleration a, v_next =
+        # v + dt a: (M + dt C) a = tau - bias - C v.
+        dt = self.dt
+        error = self._setpoint - q
+        tau_pi = self._kp * error + self._integral
+        if self.gravity_feedforward:
+            tau_pi = tau_pi + self._gravity(q)
+        drive = tau_pi + self._kd * v_set
+        bias = self._bias(q, v)
+        if external is not None:
+            bias = bias - external
+        dampers = self._dampers
+        v_next = v + dt * self.implicit_solve(q, dampers, drive - bias - dampers * v)
+        effort = tau_pi + self._kd * (v_set - v_next)
+        integral = self._integral + self._ki * error * dt
+        limit, negative_limit = self._effort_limit, self._negative_effort_limit
+        saturated = np.abs(effort) > limit
+        if np.count_nonzero(saturated):  # (ndarray.any costs ten times more on 9 values)
+            # A saturated joint's effort is its limit, no longer a damper.
+            limited = np.minimum(np.maximum(effort, negative_limit), limit)
+            dampers = np.where(saturated, 0.0, self._kd) + self._damping
+            tau = np.where(saturated, limited, drive)
+            v_next = v + dt * self.implicit_solve(q, dampers, tau - bias - dampers * v)
+            effort = np.where(saturated, limited, tau_pi + self._kd * (v_set - v_next))
+            effort = np.minimum(np.maximum(effort, negative_limit), limit)
+            # Anti-windup: no integration while the effort is saturated in the error's direction.
+            winding = saturated & (np.sign(error) == np.sign(effort))
+            integral = np.where(winding, self._integral, integral)
+        self._integral = np.minimum(np.maximum(integral, self._negative_i_clamp), self._i_clamp)
+        return effort, self._negative_damping * v_next
