@@ -1,14 +1,23 @@
-"""Messages to and from the pure types of ow_lander (HeightMap, joint states, requests)."""
+"""Messages to and from the pure types of ow_lander (HeightMap, joint states, requests,
+trajectories, operation markers, guarded-move results). Message classes only: no rospy."""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from typing import Any
 
+import genpy
 import numpy as np
+from geometry_msgs.msg import Point
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from ow_lander.description import BASE_FRAME
 from ow_lander.errors import TerrainError
+from ow_lander.execution import ExecutionResult
 from ow_lander.terrain import HeightMap
+from ow_lander.trajectory import Trajectory
+from ow_msgs.msg import GuardedMoveResult, Operation
 
 
 def height_map_from_msg(msg: Any) -> HeightMap:
@@ -50,3 +59,55 @@ def jsonable(values: Mapping[str, Any]) -> dict[str, Any]:
         else:
             out[key] = str(value)
     return out
+
+
+def trajectory_msg(trajectory: Trajectory, t_start: float) -> JointTrajectory:
+    """A ``trajectory_msgs/JointTrajectory`` of ``trajectory`` starting at ``t_start`` s (sim):
+    every row with its positions (rad) and velocities (rad/s)."""
+    msg = JointTrajectory()
+    msg.header.stamp = genpy.Time.from_sec(t_start)
+    msg.joint_names = list(trajectory.joints)
+    for t, position, velocity in zip(
+        trajectory.times, trajectory.positions, trajectory.velocities, strict=True
+    ):
+        point = JointTrajectoryPoint()
+        point.positions = position.tolist()
+        point.velocities = velocity.tolist()
+        point.time_from_start = genpy.Duration.from_sec(float(t))
+        msg.points.append(point)
+    return msg
+
+
+def operation_msg(
+    stamp: genpy.Time,
+    op_id: int,
+    name: str,
+    event: int,
+    parameters: Mapping[str, Any],
+    response: Any = None,
+) -> Operation:
+    """An ``ow_msgs/Operation`` START or END marker; an END marker carries the ``response``'s
+    success, message and trajectory file (if it has one). The parameters go as JSON."""
+    msg = Operation()
+    msg.header.stamp = stamp
+    msg.header.frame_id = BASE_FRAME
+    msg.id = op_id
+    msg.name = name
+    msg.event = event
+    msg.parameters = json.dumps(jsonable(parameters), sort_keys=True)
+    if response is not None:
+        msg.success = bool(response.success)
+        msg.message = str(response.message)
+        msg.trajectory_file = str(getattr(response, "trajectory_file", ""))
+    return msg
+
+
+def guarded_move_result_msg(result: ExecutionResult, stamp: genpy.Time) -> GuardedMoveResult:
+    """The ``ow_msgs/GuardedMoveResult`` of a guarded descent's ``result``, stamped ``stamp``."""
+    msg = GuardedMoveResult()
+    msg.header.stamp = stamp
+    msg.header.frame_id = BASE_FRAME
+    msg.success = result.ground_found
+    msg.position = Point(*map(float, result.ground_position))
+    msg.frame = BASE_FRAME
+    return msg

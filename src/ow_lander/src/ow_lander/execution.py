@@ -1,0 +1,339 @@
+"""Watching the execution of a timed trajectory: the arm services' decisions, free of ROS.
+
+The node hands the trajectory to the simulation (or streams its set-points), then feeds an
+:class:`ExecutionMonitor` what it observes, each with its simulation-time stamp (s):
+
+* every joint state (``{joint: rad}``) with :meth:`ExecutionMonitor.record_joint_state`, and the
+  newest one, whenever it wakes up, with :meth:`ExecutionMonitor.decide`;
+* during a guarded descent, the scoop tip (base_link, m) from tf with
+  :meth:`ExecutionMonitor.tip_sample` (``ground_detector: velocity``) or the wrist force (N) with
+  :meth:`ExecutionMonitor.wrist_force` (``ground_detector: force``).
+
+Each :class:`Decision` says what to command and whether the execution is over: the final
+set-point reached, a tracking error, a timeout, ground found (the arm held where it was at the
+contact stamp), or no ground within the searched distance.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from ow_lander.config import ExecutionConfig
+from ow_lander.description import ALL_JOINTS, ARM_JOINTS, SCOOP_TIP_FRAME
+from ow_lander.ground_detection import ForceDetector, GroundDetector
+from ow_lander.model import LanderModel
+from ow_lander.trajectory import Trajectory
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Joint states of a guarded descent kept to look up the one at the contact stamp (10 s at 50 Hz).
+JOINT_HISTORY = 500
+#: Label of the trajectory segment the ground detector watches.
+GUARDED = "guarded"
+
+
+@dataclass
+class ExecutionResult:
+    """Outcome of executing a trajectory.
+
+    Attributes:
+        success: the final set-point was reached, or a guarded descent found the ground.
+        message: what happened, or why it failed.
+        duration: s (simulation time) from the trajectory's start to the end of the execution.
+        ground_found: a guarded descent detected contact.
+        ground_position: (3,) m, scoop tip in base_link at contact; zeros when not found.
+        reports_ground: a guarded descent ended (found or not): the node publishes
+            ``/guarded_move_result`` once.
+        contact_time: s (simulation time) of the contact, or None.
+    """
+
+    success: bool
+    message: str
+    duration: float = 0.0
+    ground_found: bool = False
+    ground_position: FloatArray = field(default_factory=lambda: np.zeros(3))
+    reports_ground: bool = False
+    contact_time: float | None = None
+
+
+@dataclass(frozen=True)
+class Decision:
+    """What to do after an observation.
+
+    Attributes:
+        setpoints: rad by joint name, to command now (the streaming interface), or None.
+        hold: rad by joint name, to command so that the arm stops there, or None.
+        result: the outcome once the execution is over; None while it goes on.
+    """
+
+    setpoints: dict[str, float] | None = None
+    hold: dict[str, float] | None = None
+    result: ExecutionResult | None = None
+
+
+class GuardWatch:
+    """The ground detector armed for one guarded descent, fed on simulation time.
+
+    Args:
+        start: s (sim), first time of the steady descent (after the settle pause).
+        end: s (sim), last time of the steady descent.
+        config: the detector choice and its thresholds.
+
+    Attributes:
+        kind: "velocity" (the paper's detector) or "force" (the wrist force/torque sensor).
+        detector: the paper's detector.
+        force_detector: the force detector.
+        contact_time: s (sim) of the sample at which contact was declared, or None.
+        joints: recent (stamp s, joint positions by name) of the descent, to hold the arm where
+            it was at contact rather than where the running simulation has pushed it since.
+    """
+
+    def __init__(self, start: float, end: float, config: ExecutionConfig) -> None:
+        self.start = start
+        self.end = end
+        self.kind = config.ground_detector
+        self.detector = GroundDetector(relative_tolerance=config.ground_relative_tolerance)
+        self.force_detector = ForceDetector(config.ground_force_threshold_n)
+        self.contact_time: float | None = None
+        self.joints: deque[tuple[float, dict[str, float]]] = deque(maxlen=JOINT_HISTORY)
+
+    @property
+    def contact(self) -> FloatArray | None:
+        """m, scoop tip (base_link) where the chosen detector declared contact, or None."""
+        detector = self.detector if self.kind == "velocity" else self.force_detector
+        return detector.contact
+
+    def watching(self, kind: str, t: float) -> bool:
+        """True when the ``kind`` detector still looks for contact at time ``t`` (s, sim)."""
+        return self.kind == kind and self.contact_time is None and self.start <= t <= self.end
+
+    def joints_at_contact(self) -> dict[str, float] | None:
+        """Joint positions of the last joint state at or before the contact, or None."""
+        if self.contact_time is None:
+            return None
+        before = [values for stamp, values in self.joints if stamp <= self.contact_time]
+        return before[-1] if before else None
+
+
+def with_settle_pause(trajectory: Trajectory, config: ExecutionConfig) -> Trajectory:
+    """The trajectory to execute: a guarded segment is preceded by ``guarded_settle_s`` at rest
+    (OceanWATERS waits 2 s before the descent)."""
+    guarded = trajectory.segment_span(GUARDED)
+    if guarded is None or config.guarded_settle_s <= 0:
+        return trajectory
+    return trajectory.with_pause(guarded[0], config.guarded_settle_s)
+
+
+def unknown_joints(trajectory: Trajectory) -> ExecutionResult | None:
+    """A refusal when ``trajectory`` names joints that are not arm joints (no controller)."""
+    unknown = [j for j in trajectory.joints if j not in ARM_JOINTS]
+    if unknown:
+        return ExecutionResult(False, f"trajectory names joints without a controller: {unknown}")
+    return None
+
+
+def start_error(
+    trajectory: Trajectory, joints: Mapping[str, float], config: ExecutionConfig
+) -> ExecutionResult | None:
+    """A refusal when the arm (``joints``: rad by name) is too far from the first row."""
+    here = np.array([joints[j] for j in trajectory.joints])
+    error = float(np.max(np.abs(here - trajectory.positions[0])))
+    if error > config.max_tracking_error_rad:
+        return ExecutionResult(
+            False,
+            f"the arm is {error:.3f} rad from the trajectory's first row "
+            f"(limit {config.max_tracking_error_rad} rad); plan again from the current state",
+        )
+    return None
+
+
+class ExecutionMonitor:
+    """Follows one execution of ``trajectory`` and decides when and how it ends.
+
+    Args:
+        trajectory: what is executed (with its settle pause, see :func:`with_settle_pause`).
+        t_start: s (sim), when its first row is due.
+        config: tolerances, timeouts, the set-point rate and the ground detector.
+        model: the lander, for the scoop tip's position by forward kinematics.
+        joints: rad by joint name, the joint state when the execution started.
+    """
+
+    def __init__(
+        self,
+        trajectory: Trajectory,
+        t_start: float,
+        config: ExecutionConfig,
+        model: LanderModel,
+        joints: Mapping[str, float],
+    ) -> None:
+        self.trajectory = trajectory
+        self.t_start = t_start
+        self.config = config
+        self.model = model
+        self.limit = trajectory.duration * config.timeout_factor + config.settle_timeout_s
+        self._latest = dict(joints)
+        self._next_command = t_start
+        self.guarded = trajectory.segment_span(GUARDED)
+        # The detector watches the *steady* descent (the paper): samples of the acceleration
+        # ramp would set its threshold so close to zero velocity that ground which gives a
+        # little is never detected, and the braking ramp at the end would look like contact.
+        steady = trajectory.steady_span(GUARDED)
+        self.guard = (
+            GuardWatch(t_start + steady[0], t_start + steady[1], config)
+            if self.guarded is not None and steady is not None
+            else None
+        )
+
+    @property
+    def contact_time(self) -> float | None:
+        """s (sim) at which the ground detector declared contact, or None."""
+        return None if self.guard is None else self.guard.contact_time
+
+    # --------------------------------------------------------------------------- observations
+    def record_joint_state(self, stamp: float, joints: Mapping[str, float]) -> None:
+        """Keep a joint state (every one received, rad by name) for the contact lookup."""
+        self._latest.update(joints)
+        guard = self.guard
+        if guard is not None and (guard.contact_time is None or stamp <= guard.contact_time):
+            guard.joints.append((stamp, dict(self._latest)))
+
+    def wants_tip(self, t: float) -> bool:
+        """True when a scoop-tip sample at time ``t`` (s, sim) is wanted (velocity detector)."""
+        return self.guard is not None and self.guard.watching("velocity", t)
+
+    def tip_sample(self, t: float, position: FloatArray) -> bool:
+        """Feed the scoop tip (3,) m in base_link at time ``t`` (s, sim); True on contact."""
+        guard = self.guard
+        if guard is None or not guard.watching("velocity", t):
+            return False
+        if guard.detector.update(t, position):
+            guard.contact_time = t
+            return True
+        return False
+
+    def wrist_force(self, t: float, force: FloatArray) -> bool:
+        """Feed the wrist force (3,) N at time ``t`` (s, sim); True on contact (force detector).
+
+        The tip position at contact comes from the joint states of that stamp (see
+        :meth:`decide`): tf at 30 Hz may lag the 50 Hz wrench by more than the tolerance.
+        """
+        guard = self.guard
+        if guard is None or not guard.watching("force", t):
+            return False
+        if guard.force_detector.update(force):
+            guard.contact_time = t
+            return True
+        return False
+
+    # ------------------------------------------------------------------------------ decisions
+    def decide(self, stamp: float, joints: Mapping[str, float]) -> Decision:
+        """The decision on the newest joint state (``stamp`` s sim, rad by name).
+
+        After a contact, call it once the joint states up to the contact stamp have been
+        recorded: the arm is held at the joint state of the contact stamp.
+        """
+        cfg = self.config
+        names = self.trajectory.joints
+        here = np.array([joints[j] for j in names])
+        t = stamp - self.t_start
+        if self.contact_time is not None:
+            return self._contact(here, t)
+        setpoints = None
+        if cfg.interface == "position_controllers" and stamp >= self._next_command:
+            ahead = self.trajectory.sample(max(t + 1.0 / cfg.command_rate_hz, 0.0))
+            setpoints = _by_name(names, ahead)
+            self._next_command = stamp + 1.0 / cfg.command_rate_hz
+        if t < 0.0:
+            return Decision(setpoints)
+        error = np.abs(here - self.trajectory.sample(t))
+        worst = int(np.argmax(error))
+        if error[worst] > cfg.max_tracking_error_rad:
+            message = (
+                f"tracking error: {names[worst]} is {error[worst]:.3f} rad from its set-point "
+                f"at t={t:.1f} s (limit {cfg.max_tracking_error_rad} rad); the arm holds where "
+                "it is"
+            )
+            return Decision(setpoints, _by_name(names, here), ExecutionResult(False, message, t))
+        if t >= self.trajectory.duration and error[worst] <= cfg.goal_tolerance_rad:
+            reached = ExecutionResult(True, "reached the final set-point", t)
+            return Decision(setpoints, None, self._finished(reached))
+        if t > self.limit:
+            message = (
+                f"timeout: final set-point not reached within {self.limit:.1f} s "
+                f"(worst joint {names[worst]} {error[worst]:.3f} rad away)"
+            )
+            return Decision(setpoints, _by_name(names, here), ExecutionResult(False, message, t))
+        return Decision(setpoints)
+
+    def stalled(self) -> Decision:
+        """The decision when joint states stopped arriving: hold the last one, fail."""
+        message = (
+            f"no /joint_states for {self.config.joint_state_timeout_s} s of wall time: "
+            "is the simulation running?"
+        )
+        hold = {j: self._latest[j] for j in self.trajectory.joints}
+        return Decision(None, hold, ExecutionResult(False, message))
+
+    def _contact(self, here: FloatArray, t: float) -> Decision:
+        """Ground found: hold where the arm was at the contact stamp. The simulation may have
+        run on for a while (it runs many times faster than real time): go back there, not
+        further into the ground it yields."""
+        guard = self.guard
+        assert guard is not None  # a contact time comes from the guard
+        hold = here
+        at_contact = guard.joints_at_contact()
+        if at_contact is not None:
+            q_contact = self._q(at_contact)
+            if guard.kind == "force":
+                # Where the tip was at the force reading's stamp (tf may lag it).
+                guard.force_detector.contact = self.model.position(q_contact, SCOOP_TIP_FRAME)
+            hold = np.array([q_contact[self.model.index(j)] for j in self.trajectory.joints])
+        found = ExecutionResult(True, "ground found", t)
+        return Decision(None, _by_name(self.trajectory.joints, hold), self._finished(found))
+
+    def _finished(self, result: ExecutionResult) -> ExecutionResult:
+        """A successful end; for a guarded descent, ground found or not found."""
+        if self.guarded is None:
+            return result
+        guard = self.guard
+        if guard is not None and guard.contact_time is not None and guard.contact is not None:
+            position = guard.contact
+            return ExecutionResult(
+                True,
+                f"ground found at z={position[2]:.4f} m (t={guard.contact_time:.2f} s sim)",
+                result.duration,
+                ground_found=True,
+                ground_position=position,
+                reports_ground=True,
+                contact_time=guard.contact_time,
+            )
+        base = self._q(self._latest)
+        ends = [
+            self.model.position(
+                self.model.q_from(_by_name(self.trajectory.joints, row), base), SCOOP_TIP_FRAME
+            )
+            for row in (
+                self.trajectory.sample(self.guarded[0]),
+                self.trajectory.sample(self.guarded[1]),
+            )
+        ]
+        searched = float(np.linalg.norm(ends[1] - ends[0]))
+        return ExecutionResult(
+            False,
+            f"no ground within {searched:.2f} m of the start of the descent",
+            result.duration,
+            reports_ground=True,
+        )
+
+    def _q(self, joints: Mapping[str, float]) -> FloatArray:
+        """(9,) rad, the model configuration of a joint state (joints of the lander only)."""
+        return self.model.q_from({j: v for j, v in joints.items() if j in ALL_JOINTS})
+
+
+def _by_name(joints: tuple[str, ...], values: FloatArray) -> dict[str, float]:
+    return {joint: float(value) for joint, value in zip(joints, values, strict=True)}
