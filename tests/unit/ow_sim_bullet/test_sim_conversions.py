@@ -15,7 +15,13 @@ from tf2_msgs.msg import TFMessage
 
 from ow_lander.description import URDF_PATH
 from ow_sim_bullet import wire
-from ow_sim_bullet.conversions import joint_frames, quaternion_from_matrix, stamp, transform_msg
+from ow_sim_bullet.conversions import (
+    joint_frames,
+    quaternion_from_matrix,
+    quaternion_from_rpy,
+    stamp,
+    transform_msg,
+)
 
 
 def quaternion_matrix(q: tuple[float, float, float, float]) -> np.ndarray:
@@ -43,6 +49,37 @@ def test_joint_transforms_compose_to_pinocchio_link_poses():
     for link, pose in poses.items():
         expected = data.oMf[model.getFrameId(link)].homogeneous
         assert np.allclose(pose, expected, atol=1e-9), link
+
+
+def test_quaternion_from_rpy_is_the_urdf_rotation_with_the_usual_sign():
+    rng = np.random.default_rng(5)
+    for roll, pitch, yaw in rng.uniform(-4.0, 4.0, (50, 3)):
+        q = quaternion_from_rpy(roll, pitch, yaw)
+        assert np.allclose(quaternion_matrix(q), pin.rpy.rpyToMatrix(roll, pitch, yaw))
+        # The closed form of qz(yaw) qy(pitch) qx(roll): the sign tf has always been sent with.
+        cr, sr = np.cos(roll / 2), np.sin(roll / 2)
+        cp, sp = np.cos(pitch / 2), np.sin(pitch / 2)
+        cy, sy = np.cos(yaw / 2), np.sin(yaw / 2)
+        expected = (
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+            cr * cp * cy + sr * sp * sy,
+        )
+        assert np.allclose(q, expected, rtol=0.0, atol=1e-12)
+
+
+def test_joint_rotations_are_the_origin_turned_about_the_axis():
+    rng = np.random.default_rng(6)
+    for frame in joint_frames(URDF_PATH.read_text()):
+        if frame.axis is None:
+            assert frame.rotation_at(1.0) == frame.rotation
+            continue
+        origin = quaternion_matrix(frame.rotation)
+        for angle in rng.uniform(-7.0, 7.0, 10):
+            turn = pin.AngleAxis(angle, np.array(frame.axis)).matrix()
+            rotation = quaternion_matrix(frame.rotation_at(angle))
+            assert np.allclose(rotation, origin @ turn, rtol=0.0, atol=1e-12), frame.joint
 
 
 def test_quaternion_from_matrix_round_trips():
