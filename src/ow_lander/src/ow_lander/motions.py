@@ -15,6 +15,7 @@ from collections.abc import Callable
 import numpy as np
 import numpy.typing as npt
 
+from ow_lander.collision import ARM_LINKS
 from ow_lander.description import (
     ARM_JOINTS,
     GRINDER_LINK,
@@ -24,9 +25,9 @@ from ow_lander.description import (
     UNSTOWED,
 )
 from ow_lander.errors import PlanningError
-from ow_lander.model import ARM_LINKS
-from ow_lander.planning import ArmPlanner, CheckContext
+from ow_lander.planning import ArmPlanner
 from ow_lander.terrain import HeightMap
+from ow_lander.validity import CheckContext
 
 FloatArray = npt.NDArray[np.float64]
 
