@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import genpy
 import numpy as np
@@ -14,10 +14,12 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ow_lander.description import BASE_FRAME
 from ow_lander.errors import TerrainError
-from ow_lander.execution import ExecutionResult
 from ow_lander.terrain import HeightMap
-from ow_lander.trajectory import Trajectory
 from ow_msgs.msg import GuardedMoveResult, Operation
+
+if TYPE_CHECKING:  # annotations only: reading messages does not load the model (pinocchio)
+    from ow_lander.execution import ExecutionResult
+    from ow_lander.trajectory import Trajectory
 
 
 def height_map_from_msg(msg: Any) -> HeightMap:
