@@ -16,6 +16,9 @@ apt_packages=(
   python3-visualization-msgs python3-trajectory-msgs python3-rosgraph-msgs python3-tf2-msgs
   ros-trajectory-msgs ros-sensor-msgs libsensor-msgs-dev python3-roslaunch
   python3-genpy python3-genmsg python3-venv python3-pip g++ make cmake
+  # action message generation (owl_msgs): actionlib_msgs' .msg files, cmake macros and Python
+  ros-actionlib-msgs libactionlib-msgs-dev python3-actionlib-msgs python3-actionlib
+  libgeometry-msgs-dev
   # what other Debian Python packages ask for, so that `pip check` in the venv is clean
   python3-cffi python3-cairo
 )
