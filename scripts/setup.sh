@@ -73,7 +73,7 @@ pth_line="import sys, types, os; m = sys.modules.setdefault('mpl_toolkits', type
 # catkin_make only when a build input changed since the last build.
 stamp=build/.ow_build_stamp
 if [ ! -f devel/setup.bash ] || [ ! -f "$stamp" ] || [ -n "$(find src -newer "$stamp" \
-     \( -name package.xml -o -name CMakeLists.txt -o -name setup.py -o -name '*.msg' -o -name '*.srv' \
+     \( -name package.xml -o -name CMakeLists.txt -o -name setup.py -o -name '*.msg' -o -name '*.srv' -o -name '*.action' -o -name '*.cfg' \
         -o -path '*/nodes/*' \) -print -quit)" ]; then
   echo "setup: catkin_make"
   # shellcheck disable=SC1091
