@@ -33,6 +33,7 @@ def test_the_shipped_mission_file_is_valid_and_complete():
         ({"parallel": "yes"}, "mission/parallel must be true or false"),
         ({"depth": 0.1}, "unknown key 'mission/depth'"),
         ({"node_params": {"sim": 3}}, "mission/node_params must map node names"),
+        ({"node_params": {"arm_service": {}}}, "no such node.*did you mean 'arm_services'"),
     ],
 )
 def test_bad_mission_values_name_the_key(raw, match):

@@ -16,8 +16,9 @@ from typing import Any
 import yaml
 
 from ow_lander.description import DEFAULT_GROUND_Z
-from ow_lander.params import Params
+from ow_lander.params import Params, suggest
 from ow_mission.errors import ConfigError
+from ow_mission.node_config import STACK_NODES
 
 #: The default mission file shipped with the workspace.
 DEFAULT_MISSION_FILE: Path = Path(__file__).resolve().parents[2] / "config" / "mission.yaml"
@@ -105,6 +106,13 @@ class MissionConfig:
         ):
             p.problem("mission/node_params must map node names to parameter mappings")
             node_params = {}
+        nodes = [n.executable for n in STACK_NODES]
+        for node in node_params:
+            if node not in nodes:
+                p.problem(
+                    f"mission/node_params/{node}: no such node in the stack (nodes: "
+                    f"{', '.join(nodes)}){suggest(str(node), nodes)}"
+                )
         config = cls(
             name=p.string("name", d.name),
             terrain=p.string("terrain", d.terrain),

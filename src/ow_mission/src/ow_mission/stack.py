@@ -314,3 +314,31 @@ def private_master(log_dir: Path | None = None, use_sim_time: bool = True) -> It
         yield master
     finally:
         master.stop()
+
+
+def peak_memory_mb(roots: Iterable[int]) -> float:
+    """MB, sum of the peak resident memory (VmHWM) of this process and of every process in the
+    trees under ``roots`` (pids; a node started by rosrun is a process tree)."""
+    pids = [os.getpid()]
+    for root in roots:
+        pids += _process_tree(root)
+    total_kb = 0
+    for pid in pids:
+        try:
+            for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+                if line.startswith("VmHWM:"):
+                    total_kb += int(line.split()[1])
+        except OSError:
+            continue
+    return total_kb / 1024.0
+
+
+def _process_tree(pid: int) -> list[int]:
+    out = [pid]
+    try:
+        children = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
+    except OSError:
+        return out
+    for child in children:
+        out += _process_tree(int(child))
+    return out
