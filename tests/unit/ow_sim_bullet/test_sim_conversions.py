@@ -1,8 +1,12 @@
-"""tf transforms built from URDF joints agree with pinocchio; the wire serialisers with genpy."""
+"""tf transforms built from URDF joints agree with pinocchio; the wire serialisers with genpy;
+the batch publisher writes what rospy would; trajectory requests from messages."""
 
 from __future__ import annotations
 
 import io
+import struct
+import threading
+from types import SimpleNamespace
 
 import genpy
 import numpy as np
@@ -16,12 +20,14 @@ from tf2_msgs.msg import TFMessage
 from ow_lander.description import URDF_PATH
 from ow_sim_bullet import wire
 from ow_sim_bullet.conversions import (
+    TrajectoryRequest,
     joint_frames,
     quaternion_from_matrix,
     quaternion_from_rpy,
     stamp,
     transform_msg,
 )
+from ow_sim_bullet.errors import CommandError
 
 
 def quaternion_matrix(q: tuple[float, float, float, float]) -> np.ndarray:
@@ -153,3 +159,109 @@ def test_stamped_and_clock_wires_are_genpys_serialisation(time_s):
     serialised = wire.StampedWire("base_link").point(9, time_s, 1.7, -0.05, -0.155)
     assert serialised == genpy_bytes(point, 9)
     assert wire.clock(1, time_s) == genpy_bytes(Clock(clock=stamp(time_s)))
+
+
+def test_genpy_payload_sets_the_header_seq_as_rospy_does():
+    wrench = WrenchStamped()
+    wrench.header.frame_id = "l_scoop"
+    payload = wire.genpy_payload(7, lambda: wrench)
+    assert payload == genpy_bytes(wrench, 7)
+    assert wire.genpy_payload(7, Clock) == genpy_bytes(Clock())  # no header
+
+
+class FakeConnection:
+    def __init__(self, fail: bool = False) -> None:
+        self.fail, self.data, self.closed = fail, [], False
+
+    def write_data(self, data: bytes) -> None:
+        if self.fail:
+            raise OSError("connection reset")
+        self.data.append(data)
+
+    def close(self) -> None:
+        self.closed = True
+
+
+class FakeImpl:
+    """The parts of rospy 1.15's ``_PublisherImpl`` a BatchPublisher uses."""
+
+    def __init__(self, connections: list[FakeConnection]) -> None:
+        self.connections = connections
+        self.publock = threading.RLock()
+        self.seq = 0
+        self.closed = False
+        self.resolved_name = "/topic"
+        self.message_data_sent = 0
+
+
+def batch(connections: list[FakeConnection], shutdown: bool = False):
+    impl = FakeImpl(connections)
+    logged: list[str] = []
+    publisher = wire.BatchPublisher(SimpleNamespace(impl=impl), lambda: shutdown, logged.append)
+    return publisher, impl, logged
+
+
+def test_batch_publisher_writes_queued_messages_length_prefixed_in_one_write():
+    good, bad = FakeConnection(), FakeConnection(fail=True)
+    publisher, impl, logged = batch([good, bad])
+    publisher.publish(wire.clock, 1.0)
+    publisher.publish(wire.clock, 2.0)
+    assert impl.seq == 2 and good.data == []  # queued, not written
+    publisher.flush()
+    first, second = wire.clock(1, 1.0), wire.clock(2, 2.0)
+    expected = struct.pack("<I", len(first)) + first + struct.pack("<I", len(second)) + second
+    assert good.data == [expected]
+    assert impl.message_data_sent == len(expected)
+    # The failing subscriber is dropped as rospy drops it; the others still get the data.
+    assert bad.closed and "dropping a subscriber of /topic: connection reset" in logged[0]
+    publisher.flush()
+    assert good.data == [expected]  # nothing new
+
+
+def test_batch_publisher_builds_nothing_without_subscribers_or_while_shutting_down():
+    publisher, impl, _ = batch([])
+    publisher.publish(lambda seq: pytest.fail("built without subscribers"))
+    assert impl.seq == 0
+    connection = FakeConnection()
+    publisher, impl, _ = batch([connection], shutdown=True)
+    publisher.publish(wire.clock, 1.0)
+    publisher.flush()
+    assert connection.data == [] and impl.message_data_sent == 0
+
+
+def point(time_s: float, positions, velocities=()):
+    return SimpleNamespace(
+        time_from_start=genpy.Duration.from_sec(time_s),
+        positions=positions,
+        velocities=velocities,
+    )
+
+
+def trajectory_msg(points, stamp_s: float = 0.0):
+    return SimpleNamespace(
+        joint_names=["j_a", "j_b"],
+        header=SimpleNamespace(stamp=genpy.Time.from_sec(stamp_s)),
+        points=points,
+    )
+
+
+def test_a_trajectory_request_starts_at_its_stamp_or_on_arrival():
+    msg = trajectory_msg([point(1.0, [0.1, 0.2], [0.0, 0.0]), point(2.0, [0.3, 0.4], [0.0, 0.0])])
+    request = TrajectoryRequest.from_msg(msg)
+    on_arrival = request.build(12.5, ["j_a", "j_b", "j_c"])
+    assert on_arrival.start_time == 12.5
+    assert on_arrival.velocities is not None
+    assert np.allclose(on_arrival.positions, [[0.1, 0.2], [0.3, 0.4]])
+    stamped = TrajectoryRequest.from_msg(trajectory_msg(msg.points, stamp_s=20.0))
+    assert stamped.build(12.5, ["j_a", "j_b"]).start_time == 20.0
+    linear = TrajectoryRequest.from_msg(trajectory_msg([point(1.0, [0.1, 0.2])]))
+    assert linear.velocities is None
+
+
+def test_a_trajectory_request_with_velocities_on_some_points_only_is_refused():
+    msg = trajectory_msg([point(1.0, [0.1, 0.2], [0.0, 0.0]), point(2.0, [0.3, 0.4])])
+    with pytest.raises(CommandError, match="give velocities on every point or on none"):
+        TrajectoryRequest.from_msg(msg)
+    request = TrajectoryRequest.from_msg(trajectory_msg([point(1.0, [0.1, 0.2])]))
+    with pytest.raises(CommandError, match="unknown joint"):
+        request.build(0.0, ["j_a"])

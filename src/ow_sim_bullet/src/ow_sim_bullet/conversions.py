@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import genpy
 import numpy as np
@@ -19,7 +21,9 @@ from geometry_msgs.msg import TransformStamped, WrenchStamped
 from ow_lander.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.msg import ToolState as ToolStateMsg
+from ow_sim_bullet.errors import CommandError
 from ow_sim_bullet.tool_tracking import FloatArray, ToolSnapshot
+from ow_sim_bullet.trajectory import JointTrajectory
 
 Quaternion = tuple[float, float, float, float]  # x, y, z, w
 
@@ -200,3 +204,59 @@ def heightmap_msg(heightmap: HeightMap, time_s: float) -> HeightMapMsg:
     msg.rows, msg.cols = heightmap.shape
     msg.heights = heightmap.heights.astype(np.float32).ravel().tolist()
     return msg
+
+
+@dataclass(frozen=True)
+class TrajectoryRequest:
+    """A ``trajectory_msgs/JointTrajectory`` as received, before the simulation validates it.
+
+    Attributes:
+        joints: joint names of the columns.
+        start_time: s of sim time of the header stamp; 0 starts the trajectory on arrival.
+        times: s from start of each point.
+        positions: rad, one row per point.
+        velocities: rad/s, one row per point, or None when no point gives velocities.
+    """
+
+    joints: tuple[str, ...]
+    start_time: float
+    times: tuple[float, ...]
+    positions: tuple[tuple[float, ...], ...]
+    velocities: tuple[tuple[float, ...], ...] | None
+
+    @classmethod
+    def from_msg(cls, trajectory: Any) -> TrajectoryRequest:
+        """Read a ``trajectory_msgs/JointTrajectory``.
+
+        Raises:
+            CommandError: some points give velocities and others do not.
+        """
+        points = trajectory.points
+        velocities = None
+        if points and all(len(p.velocities) for p in points):
+            velocities = tuple(tuple(p.velocities) for p in points)
+        elif any(len(p.velocities) for p in points):
+            msg = "give velocities on every point or on none"
+            raise CommandError(msg)
+        return cls(
+            tuple(trajectory.joint_names),
+            trajectory.header.stamp.to_sec(),
+            tuple(p.time_from_start.to_sec() for p in points),
+            tuple(tuple(p.positions) for p in points),
+            velocities,
+        )
+
+    def build(self, now: float, known_joints: Sequence[str]) -> JointTrajectory:
+        """The trajectory, starting at its stamp or, stamped 0, at sim time ``now`` (s).
+
+        Raises:
+            CommandError: unknown or repeated joints, bad times or non-finite values.
+        """
+        return JointTrajectory.build(
+            self.joints,
+            self.start_time if self.start_time > 0 else now,
+            self.times,
+            self.positions,
+            self.velocities,
+            known_joints,
+        )

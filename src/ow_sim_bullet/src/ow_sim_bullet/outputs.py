@@ -1,0 +1,193 @@
+"""What the simulation node publishes after each physics step, and when.
+
+:class:`SimOutputs` decides which outputs are due at the sample's sim time, builds their payloads
+from the simulation (wire serialisers for the high-rate ones, genpy messages for the rest) and
+queues them on publishers it is given: anything with ``publish(serialize, *args)`` and
+``flush()`` (:class:`ow_sim_bullet.wire.BatchPublisher` in the node, a recorder in tests). No
+rospy here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, Protocol
+
+from geometry_msgs.msg import PointStamped, WrenchStamped
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from tf2_msgs.msg import TFMessage
+
+from ow_msgs.msg import ToolState as ToolStateMsg
+from ow_sim_bullet import conversions, wire
+from ow_sim_bullet.config import SimConfig
+from ow_sim_bullet.conversions import JointFrame
+from ow_sim_bullet.scheduling import Periodic, Throttle
+from ow_sim_bullet.sim_core import BulletSim
+from ow_sim_bullet.tool_tracking import TOOLS, WRIST_FT_LINK, ToolSnapshot
+
+#: physics steps whose outputs are written together when running faster than real time.
+FLUSH_STEPS = 4
+
+#: (topic, message class) of every output written with the wire publishers, in the order their
+#: queued messages are written: /clock first.
+WIRE_TOPICS: tuple[tuple[str, type], ...] = (
+    ("/clock", Clock),
+    ("/joint_states", JointState),
+    ("~joint_damping", JointState),
+    ("/tf", TFMessage),
+    *((f"~{tool}_wrench", WrenchStamped) for tool in TOOLS),
+    ("~scoop_tip_ground", PointStamped),
+    ("/arm_end_effector_force_torque", WrenchStamped),
+    *((f"~{tool}_state", ToolStateMsg) for tool in TOOLS),
+    *((f"~{tool}_model_state", ToolStateMsg) for tool in TOOLS),
+    *((f"~{tool}_model_wrench", WrenchStamped) for tool in TOOLS),
+)
+
+
+class WirePublisher(Protocol):
+    """Queues serialised messages and writes them on :meth:`flush`."""
+
+    def publish(self, serialize: Callable[..., bytes], *args: Any) -> None:
+        """Queue the payload ``serialize(seq, *args)``."""
+        ...
+
+    def flush(self) -> None:
+        """Write the queued payloads."""
+        ...
+
+
+class MessagePublisher(Protocol):
+    """Publishes whole messages (the latched terrain)."""
+
+    def publish(self, msg: Any) -> None:
+        """Publish ``msg``."""
+        ...
+
+
+class SimOutputs:
+    """The node's outputs of one simulation.
+
+    Args:
+        sim: the simulation (read on the simulation thread only).
+        config: rates and the terrain's republication period.
+        publishers: one per topic of :data:`WIRE_TOPICS`.
+        terrain: publisher of the ``ow_msgs/HeightMap`` of the terrain.
+        frames: the URDF's joint frames; the movable ones go on /tf.
+        on_clock: called with the sim time (s) of the last /clock written, when it changed, at
+            each :meth:`flush` (the node sets its own ROS time), or None.
+    """
+
+    def __init__(
+        self,
+        sim: BulletSim,
+        config: SimConfig,
+        publishers: Mapping[str, WirePublisher],
+        terrain: MessagePublisher,
+        frames: Sequence[JointFrame],
+        on_clock: Callable[[float], None] | None = None,
+    ) -> None:
+        self.sim = sim
+        self._publishers = [publishers[topic] for topic, _ in WIRE_TOPICS]
+        self._clock_pub = publishers["/clock"]
+        self._joint_pub = publishers["/joint_states"]
+        self._damping_pub = publishers["~joint_damping"]
+        self._tf_pub = publishers["/tf"]
+        self._wrench_pubs = {tool: publishers[f"~{tool}_wrench"] for tool in TOOLS}
+        self._tip_ground_pub = publishers["~scoop_tip_ground"]
+        self._wrist_pub = publishers["/arm_end_effector_force_torque"]
+        self._tool_pubs = [
+            (kind, build, {tool: publishers[f"~{tool}_{kind}"] for tool in TOOLS})
+            for kind, build in (
+                ("state", conversions.tool_state_msg),
+                ("model_state", conversions.model_state_msg),
+                ("model_wrench", conversions.model_wrench_msg),
+            )
+        ]
+        self._terrain_pub = terrain
+        self._on_clock = on_clock
+        moving = [f for f in frames if f.axis is not None]
+        self._joint_state_wire = wire.JointStateWire(sim.names)
+        self._tf_wire = wire.TfWire(moving, [sim.names.index(f.joint) for f in moving])
+        self._tool_wire = {tool: wire.StampedWire(link) for tool, (link, _) in TOOLS.items()}
+        self._base_wire = wire.StampedWire("base_link")
+        self._wrist_wire = wire.StampedWire(WRIST_FT_LINK)
+        self._clock_tick = Periodic(config.clock_rate_hz)
+        self._joint_tick = Periodic(config.joint_state_rate_hz)
+        self._tf_tick = Periodic(config.tf_rate_hz)
+        self._wrench_tick = Periodic(config.wrench_rate_hz)
+        self._tool_tick = Periodic(config.tool_state_rate_hz)
+        self._terrain_throttle = Throttle(config.terrain_publish_period)
+        #: the tools' last snapshots (the tool states are published from them).
+        self.snapshots: dict[str, ToolSnapshot] = {}
+        self._unflushed_steps = 0
+        #: s of sim time of the last /clock message queued, and of the last one told on_clock.
+        self._clock_time = self._told_time = -1.0
+
+    def publish(self, force: bool = False) -> None:
+        """Queue what is due at the current sim time (messages are only built for subscribers,
+        but the tools' snapshots are taken anyway: they restart the force means); ``force``
+        queues every output. Publishes the terrain if it is due."""
+        sim = self.sim
+        now = sim.time
+        if self._clock_tick.due(now) or force:
+            self._clock_pub.publish(wire.clock, now)
+            self._clock_time = now
+        sample = sim.sample
+        t = sample.time
+        if self._joint_tick.due(t) or force:
+            joint_state = self._joint_state_wire
+            position, velocity = sample.position, sample.velocity
+            self._joint_pub.publish(joint_state, t, position, velocity, sample.effort)
+            self._damping_pub.publish(joint_state, t, position, velocity, sample.damping_effort)
+        if self._tf_tick.due(t) or force:
+            self._tf_pub.publish(self._tf_wire, t, sample.position)
+        if self._wrench_tick.due(t) or force:
+            for tool, publisher in self._wrench_pubs.items():
+                snapshot = sim.tool_snapshot(tool)
+                self.snapshots[tool] = snapshot
+                publisher.publish(
+                    self._tool_wire[tool].wrench, snapshot.time, snapshot.force, snapshot.torque
+                )
+            wrist_force, wrist_torque = sim.wrist_wrench()
+            self._wrist_pub.publish(self._wrist_wire.wrench, t, wrist_force, wrist_torque)
+            scoop = self.snapshots["scoop"]
+            self._tip_ground_pub.publish(
+                self._base_wire.point,
+                scoop.time,
+                float(scoop.tip[0]),
+                float(scoop.tip[1]),
+                scoop.terrain_z,
+            )
+        if self._tool_tick.due(sample.time) or force:
+            for _, build, publishers in self._tool_pubs:
+                for tool, publisher in publishers.items():
+                    if tool in self.snapshots:
+                        publisher.publish(wire.genpy_payload, build, self.snapshots[tool])
+        self.publish_terrain_if_due()
+
+    def after_step(self) -> None:
+        """Queue the outputs of the step just taken; write them every :data:`FLUSH_STEPS`."""
+        self.publish()
+        self._unflushed_steps += 1
+        if self._unflushed_steps >= FLUSH_STEPS:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the queued messages, /clock first; tell ``on_clock`` the /clock written (once
+        per flush rather than at every tick: setting rospy's time costs ~10 us)."""
+        self._unflushed_steps = 0
+        if self._on_clock is not None and self._clock_time != self._told_time:
+            self._on_clock(self._clock_time)
+            self._told_time = self._clock_time
+        for publisher in self._publishers:
+            publisher.flush()
+
+    def publish_terrain_if_due(self) -> None:
+        """Publish the terrain if it changed and the last publication is old enough."""
+        if self._terrain_throttle.due(self.sim.terrain_version):
+            self.publish_terrain()
+
+    def publish_terrain(self) -> None:
+        """Publish the terrain now."""
+        self._terrain_throttle.done(self.sim.terrain_version)
+        self._terrain_pub.publish(conversions.heightmap_msg(self.sim.heightmap, self.sim.time))

@@ -1,0 +1,178 @@
+"""The node's outputs and simulation thread without a master: a real simulation (pybullet DIRECT)
+publishing into recorders that decode what would go on the wire."""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+
+import pytest
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from tf2_msgs.msg import TFMessage
+
+from ow_lander.description import DEFAULT_GROUND_Z, URDF_PATH
+from ow_msgs.msg import ToolState as ToolStateMsg
+from ow_sim_bullet.config import SimConfig
+from ow_sim_bullet.conversions import joint_frames
+from ow_sim_bullet.errors import CommandError, SimError
+from ow_sim_bullet.outputs import FLUSH_STEPS, WIRE_TOPICS, SimOutputs
+from ow_sim_bullet.runner import SimRunner
+from ow_sim_bullet.sim_core import BulletSim
+from ow_sim_bullet.terrains import flat
+
+
+class Recorder:
+    """A wire publisher that keeps what it would write, in the order flushes wrote it."""
+
+    def __init__(self, topic: str, data_class: type, log: list[str]) -> None:
+        self.topic, self.data_class, self.log = topic, data_class, log
+        self.seq = 0
+        self.queued: list[bytes] = []
+        self.written: list[bytes] = []
+
+    def publish(self, serialize, *args) -> None:
+        self.seq += 1
+        self.queued.append(serialize(self.seq, *args))
+
+    def flush(self) -> None:
+        if self.queued:
+            self.log.append(self.topic)
+        self.written += self.queued
+        self.queued.clear()
+
+    def messages(self) -> list:
+        return [self.data_class().deserialize(payload) for payload in self.written]
+
+
+class Terrain:
+    def __init__(self) -> None:
+        self.messages: list = []
+
+    def publish(self, msg) -> None:
+        self.messages.append(msg)
+
+
+class Setup:
+    def __init__(self, config: SimConfig) -> None:
+        self.sim = BulletSim(config, flat(DEFAULT_GROUND_Z))
+        self.log: list[str] = []
+        self.recorders = {topic: Recorder(topic, cls, self.log) for topic, cls in WIRE_TOPICS}
+        self.terrain = Terrain()
+        self.clock_times: list[float] = []
+        frames = joint_frames(URDF_PATH.read_text())
+        self.outputs = SimOutputs(
+            self.sim, config, self.recorders, self.terrain, frames, self.clock_times.append
+        )
+
+    def steps(self, count: int) -> None:
+        for _ in range(count):
+            self.sim.step()
+            self.outputs.after_step()
+
+
+@pytest.fixture()
+def setup():
+    config = dataclasses.replace(SimConfig(), terrain_publish_period=0.0)
+    made = Setup(config)
+    yield made
+    made.sim.close()
+
+
+def test_each_output_at_its_rate_with_stamps_of_the_sample(setup):
+    setup.outputs.publish(force=True)
+    setup.steps(100)
+    setup.outputs.flush()
+    counts = {topic: len(r.written) for topic, r in setup.recorders.items()}
+    # The forced first outputs at 0, then 1 s of sim time at the configured rates: /clock at
+    # the sim time (0.01 ... 1.0), the rest at the samples' (the state before each step, 0 ...
+    # 0.99, the tick at 0 taken by the forced outputs).
+    assert counts["/clock"] == 101
+    assert counts["/joint_states"] == counts["~joint_damping"] == 100
+    assert counts["/tf"] == 30
+    assert counts["~scoop_wrench"] == counts["~grinder_wrench"] == 50
+    assert counts["/arm_end_effector_force_torque"] == counts["~scoop_tip_ground"] == 50
+    for kind in ("state", "model_state", "model_wrench"):
+        assert counts[f"~scoop_{kind}"] == counts[f"~grinder_{kind}"] == 10
+    clocks = setup.recorders["/clock"].messages()
+    assert [c.clock.to_sec() for c in clocks[-2:]] == pytest.approx([0.99, 1.0])
+    joints = setup.recorders["/joint_states"].messages()
+    assert joints[-1].header.stamp.to_sec() == pytest.approx(setup.sim.sample.time)
+    assert list(joints[-1].name) == list(setup.sim.names)
+    assert joints[-1].position == pytest.approx(setup.sim.sample.position.tolist())
+    tf = setup.recorders["/tf"].messages()[-1]
+    assert {t.child_frame_id for t in tf.transforms} >= {"l_scoop", "l_grinder"}
+    state = setup.recorders["~scoop_state"].messages()[-1]
+    assert state.tool == "scoop" and state.header.frame_id == "base_link"
+    assert clocks[0].__class__ is Clock and isinstance(tf, TFMessage)
+    assert isinstance(joints[0], JointState) and isinstance(state, ToolStateMsg)
+
+
+def test_messages_are_written_every_few_steps_clock_first(setup):
+    setup.steps(FLUSH_STEPS - 1)
+    assert not setup.log and not setup.clock_times
+    setup.steps(1)
+    assert setup.log[0] == "/clock"
+    assert setup.clock_times == [pytest.approx(FLUSH_STEPS * setup.sim.dt)]
+    assert len(setup.recorders["/joint_states"].written) == FLUSH_STEPS
+
+
+def test_the_terrain_is_republished_after_it_changed(setup):
+    setup.outputs.publish_terrain()
+    assert len(setup.terrain.messages) == 1
+    setup.steps(10)
+    assert len(setup.terrain.messages) == 1  # nothing carved
+    setup.sim.set_terrain(flat(DEFAULT_GROUND_Z - 0.1))
+    setup.steps(1)
+    assert len(setup.terrain.messages) == 2
+    assert setup.terrain.messages[-1].heights[0] == pytest.approx(DEFAULT_GROUND_Z - 0.1)
+
+
+@pytest.fixture()
+def running(setup):
+    """A paused simulation thread as fast as possible."""
+    runner = SimRunner(setup.sim, setup.outputs, 0.0, True, lambda: False)
+    thread = threading.Thread(target=runner.run, daemon=True)
+    thread.start()
+    yield runner
+    runner.stop()
+    thread.join(timeout=5.0)
+    assert not thread.is_alive()
+
+
+def test_a_paused_simulation_steps_on_request(running, setup):
+    assert running.step_paused(5) == pytest.approx(0.05)
+    assert setup.sim.steps == 5
+    assert setup.recorders["/clock"].written  # flushed with the reply
+    with pytest.raises(CommandError, match="steps must be > 0"):
+        running.step_paused(0)
+    assert running.call(lambda: setup.sim.steps) == 5
+
+
+def test_commands_run_on_the_simulation_thread_and_their_errors_come_back(running, setup):
+    with pytest.raises(CommandError, match="unknown joint"):
+        running.call(lambda: setup.sim.set_setpoint("j_elbow", 0.0))
+    names: list[str] = []
+    running.enqueue(lambda: names.append(threading.current_thread().name))
+    running.call(lambda: None)
+    assert names and names[0] != threading.current_thread().name
+
+
+def test_pause_and_resume(running, setup):
+    assert running.pause() is True  # started paused
+    assert running.resume() is True
+    with pytest.raises(CommandError, match="the simulation is running; call ~pause first"):
+        running.step_paused(1)
+    assert running.resume() is False
+    while running.call(lambda: setup.sim.steps) < 10:
+        pass
+    assert running.pause() is False
+    steps = running.call(lambda: setup.sim.steps)
+    assert running.call(lambda: setup.sim.steps) == steps  # paused: no more steps
+
+
+def test_a_stopped_runner_answers_no_more(setup):
+    runner = SimRunner(setup.sim, setup.outputs, 0.0, True, lambda: False)
+    runner.stop()
+    with pytest.raises(SimError, match="did not answer"):
+        runner.call(lambda: None, timeout_s=0.3)
