@@ -6,7 +6,7 @@ import pytest
 
 from ow_mission.errors import ConfigError
 from ow_mission.mission import STEPS, MissionReport, PowerTrace, StepResult
-from ow_mission.mission_config import DEFAULT_MISSION_FILE, MissionConfig
+from ow_mission.mission_config import DEFAULT_MISSION_FILE, MissionConfig, config_from_argv
 
 
 def test_the_shipped_mission_file_is_valid_and_complete():
@@ -101,3 +101,13 @@ def test_report_table_says_what_failed(tmp_path: Path):
     assert "FAILED: no ground within 0.50 m" in text
     assert "MISSION STOPPED" in text
     assert not report.success
+
+
+def test_the_command_line_names_one_file_or_asks_for_help(tmp_path: Path):
+    mission = tmp_path / "m.yaml"
+    mission.write_text("trench_depth: 0.05\n")
+    assert config_from_argv([str(mission), "__name:=mission"]).trench_depth == 0.05
+    assert config_from_argv([]) == MissionConfig.load(DEFAULT_MISSION_FILE)
+    assert config_from_argv(["--help"]) is None
+    with pytest.raises(ConfigError, match="one mission file at most, got 2"):
+        config_from_argv(["a.yaml", "b.yaml"])

@@ -14,9 +14,9 @@ import rospy
 from geometry_msgs.msg import Point
 
 from ow_lander import conversions as conv
-from ow_lander.arm_executor import ArmExecutor
 from ow_lander.config import ArmServicesConfig
 from ow_lander.errors import ConfigError, OwLanderError, TrajectoryError
+from ow_lander.execution_node import ArmExecutor
 from ow_lander.model import LanderModel
 from ow_lander.operations import Operations
 from ow_lander.planning import ArmPlanner
@@ -71,7 +71,7 @@ class ArmServicesNode:
         ``timing/*``, ``execution/*``.
 
     Execution (the joint states, tf and wrist force, trajectories, holds and ground results)
-    is wired by :class:`~ow_lander.arm_executor.ArmExecutor`.
+    is wired by :class:`~ow_lander.execution_node.ArmExecutor`.
     """
 
     def __init__(self, config: ArmServicesConfig) -> None:

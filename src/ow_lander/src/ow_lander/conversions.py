@@ -113,3 +113,11 @@ def guarded_move_result_msg(result: ExecutionResult, stamp: genpy.Time) -> Guard
     msg.position = Point(*map(float, result.ground_position))
     msg.frame = BASE_FRAME
     return msg
+
+
+def command_topic(joint: str) -> str:
+    """The position-controller command topic of ``joint`` (OceanWATERS names)."""
+    short = joint.removeprefix("j_")
+    if short == "grinder":
+        short = "grinder_yaw"
+    return f"/{short}_position_controller/command"

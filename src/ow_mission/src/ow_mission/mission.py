@@ -8,6 +8,7 @@ against a live stack (``rosrun ow_mission mission``).
 from __future__ import annotations
 
 import bisect
+import datetime as dt
 import json
 import math
 import threading
@@ -19,7 +20,9 @@ from typing import Any
 
 import numpy as np
 
+from ow_lander.terrain import HeightMap
 from ow_mission.mission_config import MissionConfig
+from ow_mission.node_config import stack_parameters
 
 #: Steps after which a render of the arm is taken.
 RENDER_AFTER = ("guarded_move", "grind", "dig_sample", "deliver_sample")
@@ -65,6 +68,29 @@ class StepResult:
     def sim_time_s(self) -> float:
         """s of simulation time the step took."""
         return self.sim_end_s - self.sim_start_s
+
+    def take_response(self, response: Any) -> None:
+        """Fill in what the service answered (any of the paper's responses: ``success``,
+        ``message``, ``planning_time``; a guarded move's ``ground_found`` and
+        ``ground_position``). A guarded move that succeeded without finding ground fails."""
+        self.success = bool(response.success)
+        self.message = str(response.message)
+        self.planning_time_s = float(response.planning_time)
+        if self.step != "guarded_move" or not self.success:
+            return
+        if not response.ground_found:
+            self.success = False
+            self.message = f"no ground found: {response.message}"
+            return
+        contact = response.ground_position
+        self.ground_z = float(contact.z)
+        self.ground_position = (float(contact.x), float(contact.y), self.ground_z)
+
+    def take_energies(self, mechanical_j: float, total_j: float, peak_w: float) -> None:
+        """Fill in the step's energy window (J, J, W; see :meth:`PowerTrace.window`)."""
+        self.mechanical_energy_j = mechanical_j
+        self.energy_wh = total_j / 3600.0
+        self.peak_power_w = peak_w
 
 
 @dataclass
@@ -319,6 +345,68 @@ def power_plot(run_dir: Path) -> str:
     except Exception as exc:  # a plot must never cost the user the rest of the report
         return f"The power plot could not be made: {exc}"
     return ""
+
+
+def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str, Any]]:
+    """Private parameters of each node of the mission's stack: the packages' YAML files (as the
+    launch files load them), then the mission's own settings, then its ``node_params``."""
+    shipped = stack_parameters()
+    mission: dict[str, dict[str, Any]] = {
+        "sim": {
+            "terrain": config.terrain_spec,
+            "real_time_factor": config.real_time_factor,
+            "terrain_forces": config.terrain_forces,
+            # Paused until every node is up: a simulation running at full speed while the
+            # others start would take their CPU and add idle minutes to the mission's sim time.
+            "start_paused": True,
+        },
+        "arm_services": {
+            "plan_and_execute": True,
+            "trajectory_dir": str(run_dir / "trajectories"),
+        },
+        "record": {
+            "output_dir": str(run_dir / "bags"),
+            "prefix": "mission",
+            # The terrain too: the trench the mission dug is part of its result.
+            "topics": [*shipped["record"]["topics"], "/sim/terrain", "/sim/scoop_tip_ground"],
+        },
+    }
+    return stack_parameters(mission, config.node_params)
+
+
+def new_run_dir(config: MissionConfig, workspace: Path) -> Path:
+    """A run directory ``<output_dir>/<timestamp>[_n]`` that does not exist yet (an earlier run
+    is never overwritten); a relative ``output_dir`` is taken from ``workspace``."""
+    stamp = dt.datetime.now().strftime("%Y-%m-%d_%H-%M-%S")
+    base = Path(config.output_dir)
+    base = base if base.is_absolute() else workspace / base
+    run_dir, suffix = base / stamp, 1
+    while run_dir.exists():
+        run_dir, suffix = base / f"{stamp}_{suffix}", suffix + 1
+    return run_dir
+
+
+def render_step(
+    run_dir: Path,
+    label: str,
+    joints: Mapping[str, float],
+    terrain: HeightMap | None,
+    target_xy: tuple[float, float],
+) -> Path:
+    """Render the arm at ``joints`` on ``terrain`` into ``run_dir/renders/<n>_<label>.png``,
+    looking at ``target_xy`` (m, base_link); returns the file."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ow_mission.render import Camera, render_scene
+
+    index = len(list((run_dir / "renders").glob("*.png")))
+    image = render_scene(joints, terrain, Camera(target=(target_xy[0], target_xy[1], 0.1)))
+    path = run_dir / "renders" / f"{index:02d}_{label}.png"
+    plt.imsave(path, image)
+    return path
 
 
 def load_report(run_dir: Path) -> Mapping[str, Any]:

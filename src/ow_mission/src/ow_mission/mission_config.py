@@ -8,7 +8,7 @@ the wrong type or out of range raise one :class:`ConfigError` naming every bad k
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,6 +22,9 @@ from ow_mission.node_config import STACK_NODES
 
 #: The default mission file shipped with the workspace.
 DEFAULT_MISSION_FILE: Path = Path(__file__).resolve().parents[2] / "config" / "mission.yaml"
+
+#: How the mission is started.
+USAGE = f"usage: rosrun ow_mission mission [mission.yaml]   (default: {DEFAULT_MISSION_FILE})"
 
 
 @dataclass(frozen=True)
@@ -172,3 +175,19 @@ class MissionConfig:
             msg = f"mission file {path} is not valid YAML: {exc}"
             raise ConfigError(msg) from exc
         return cls.from_dict(raw or {})
+
+
+def config_from_argv(argv: Sequence[str]) -> MissionConfig | None:
+    """The mission a command line names (the default file when none); None when it asks for
+    help. ROS remapping arguments (``a:=b``, added by rosrun and roslaunch) are ignored.
+
+    Raises:
+        ConfigError: more than one file, or the file fails to load (see :meth:`MissionConfig.load`).
+    """
+    args = [a for a in argv if ":=" not in a]
+    if args and args[0] in ("-h", "--help"):
+        return None
+    if len(args) > 1:
+        msg = f"one mission file at most, got {len(args)}: {' '.join(args)}\n{USAGE}"
+        raise ConfigError(msg)
+    return MissionConfig.load(Path(args[0]) if args else DEFAULT_MISSION_FILE)

@@ -1,36 +1,26 @@
-"""``rosrun ow_mission mission [file.yaml]`` (and ``make demo``): the sample-collection mission
-of the paper (section 3) through the real services, as an autonomy client would run it.
-
-It starts a private rosmaster, the simulation, the arm services (plan-and-execute), the power node
-and the bag recorder, configured from the packages' YAML files (``ow_mission.node_config``, the
-same files the launch files load) with the mission file's settings on top, then calls: unstow;
-guarded move at the selected location; grind a trench; dig it out and discard the spoil at a
-remote point; grind again at the bottom; dig the sample; deliver it to the sample dock; stow. The
-ground the guarded move finds feeds every later step.
-
-Everything goes to ``runs/<timestamp>/``: the bags, the trajectory files, ``report.md``,
-``report.json``, the power plot and renders of the arm at key moments. A failed step stops the
-mission; what was recorded up to then is kept and the report says what failed.
+"""``rosrun ow_mission mission [file.yaml]`` (and ``make demo``): the paper's sample-collection
+mission (section 3) through the real services, as an autonomy client runs it (see
+``docs/mission.md``). It starts a private master and the stack configured by
+:mod:`ow_mission.node_config`, calls the steps of :data:`ow_mission.mission.STEPS`, and writes
+``runs/<timestamp>/``; a failed step stops it, keeping everything recorded up to then.
 """
 
 from __future__ import annotations
 
-import datetime as dt
 import os
 import sys
 import threading
 import time
-from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import rospy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 import ow_msgs.srv
+from ow_lander.conversions import height_map_from_msg
 from ow_lander.terrain import HeightMap
 from ow_mission.errors import ConfigError
 from ow_mission.mission import (
@@ -39,11 +29,21 @@ from ow_mission.mission import (
     MissionReport,
     PowerTrace,
     StepResult,
+    new_run_dir,
+    node_parameters,
+    render_step,
     write_report,
 )
-from ow_mission.mission_config import DEFAULT_MISSION_FILE, MissionConfig
-from ow_mission.node_config import STACK_NODES, stack_parameters
-from ow_mission.stack import HarnessError, NodeProcess, RosStack, peak_memory_mb, private_master
+from ow_mission.mission_config import USAGE, MissionConfig, config_from_argv
+from ow_mission.node_config import STACK_NODES
+from ow_mission.stack import (
+    HarnessError,
+    NodeProcess,
+    RosStack,
+    call_with_timeout,
+    peak_memory_mb,
+    private_master,
+)
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.msg import Power
 
@@ -62,14 +62,7 @@ class MissionRunner:
 
     def __init__(self, config: MissionConfig, workspace: Path) -> None:
         self.config = config
-        stamp = dt.datetime.now().strftime("%Y-%m-%d_%H-%M-%S")
-        base = Path(config.output_dir)
-        base = base if base.is_absolute() else workspace / base
-        self.run_dir = base / stamp
-        suffix = 1
-        while self.run_dir.exists():  # never overwrite an earlier run
-            self.run_dir = base / f"{stamp}_{suffix}"
-            suffix += 1
+        self.run_dir = new_run_dir(config, workspace)
         self.report = MissionReport(config, self.run_dir)
         self.power = PowerTrace()
         self._clock = 0.0
@@ -77,6 +70,11 @@ class MissionRunner:
         self._joint_stamp = 0.0
         self._terrain: HeightMap | None = None
         self._lock = threading.Lock()
+
+    def _render_step(self, label: str) -> None:
+        with self._lock:
+            joints, terrain = dict(self._joints), self._terrain
+        render_step(self.run_dir, label, joints, terrain, (self.config.x, self.config.y))
 
     # ------------------------------------------------------------------------- ROS callbacks
     def _on_clock(self, msg: Any) -> None:
@@ -100,9 +98,9 @@ class MissionRunner:
                     return self._joint_stamp
 
     def _on_terrain(self, msg: Any) -> None:
-        heights = np.asarray(msg.heights, dtype=np.float64).reshape(msg.rows, msg.cols)
+        terrain = height_map_from_msg(msg)
         with self._lock:
-            self._terrain = HeightMap(heights, msg.resolution, msg.origin_x, msg.origin_y)
+            self._terrain = terrain
 
     def _on_power(self, msg: Any) -> None:
         self.power.add(
@@ -110,33 +108,6 @@ class MissionRunner:
         )
 
     # --------------------------------------------------------------------------------- run
-    def node_params(self) -> dict[str, dict[str, Any]]:
-        """Private parameters of each node: the packages' YAML files (as the launch files load
-        them), then the mission's own settings, then the mission file's ``node_params``."""
-        c = self.config
-        shipped = stack_parameters()
-        mission: dict[str, dict[str, Any]] = {
-            "sim": {
-                "terrain": c.terrain_spec,
-                "real_time_factor": c.real_time_factor,
-                "terrain_forces": c.terrain_forces,
-                # Paused until every node is up: a simulation running at full speed while the
-                # others start would take their CPU and add idle minutes to the mission's sim time.
-                "start_paused": True,
-            },
-            "arm_services": {
-                "plan_and_execute": True,
-                "trajectory_dir": str(self.run_dir / "trajectories"),
-            },
-            "record": {
-                "output_dir": str(self.run_dir / "bags"),
-                "prefix": "mission",
-                # The terrain too: the trench the mission dug is part of its result.
-                "topics": [*shipped["record"]["topics"], "/sim/terrain", "/sim/scoop_tip_ground"],
-            },
-        }
-        return stack_parameters(mission, c.node_params)
-
     def run(self) -> MissionReport:
         """Run the mission; never raises for a failed step (the report says what failed)."""
         wall0 = time.monotonic()
@@ -166,7 +137,7 @@ class MissionRunner:
 
     def _start(self, stack: RosStack) -> list[NodeProcess]:
         rospy.init_node("mission", disable_signals=True)
-        params = self.node_params()
+        params = node_parameters(self.config, self.run_dir)
         # Started side by side (the simulation paused), then waited for: each node spends a
         # second or two importing, and they need nothing from one another to start.
         ready: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
@@ -209,10 +180,10 @@ class MissionRunner:
             # The simulation runs only during the steps: what the mission does in between
             # (energies, renders) neither adds sim time nor competes with it for the CPU.
             result.sim_start_s = self._clock
-            self._sim_clock_between_steps("resume")
+            self._sim_clock("resume", between_steps=True)
             wall0 = time.monotonic()
             try:
-                response = _call_with_timeout(proxy, fields, c.step_timeout_s)
+                response = call_with_timeout(proxy, fields, c.step_timeout_s)
             except (rospy.ServiceException, TypeError) as exc:
                 result.message = f"service call failed: {exc}"
                 response = None
@@ -222,116 +193,50 @@ class MissionRunner:
                 )
                 response = None
             result.wall_time_s = time.monotonic() - wall0
-            self._sim_clock_between_steps("pause")
+            self._sim_clock("pause", between_steps=True)
             # The power node computes /power from each /joint_states: the step's window ends
             # at the last one, which the power trace then reaches.
             result.sim_end_s = self._last_joint_stamp()
             self.power.wait_until(result.sim_end_s, POWER_WAIT_S)
             if response is not None:
-                result.success = bool(response.success)
-                result.message = response.message
-                result.planning_time_s = float(response.planning_time)
-            mech, total, peak = self.power.window(result.sim_start_s, result.sim_end_s)
-            result.mechanical_energy_j = mech
-            result.energy_wh = total / 3600.0
-            result.peak_power_w = peak
-            if step.name == "guarded_move" and result.success:
-                if not response.ground_found:
-                    result.success = False
-                    result.message = f"no ground found: {response.message}"
-                else:
-                    contact = response.ground_position
-                    ground = float(contact.z)
-                    result.ground_z = ground
-                    result.ground_position = (float(contact.x), float(contact.y), ground)
-                    self.report.ground_z = ground
+                result.take_response(response)
+            result.take_energies(*self.power.window(result.sim_start_s, result.sim_end_s))
+            if result.ground_z is not None:
+                ground = self.report.ground_z = result.ground_z
             print(
                 f"[mission] {step.name}: {'ok' if result.success else 'FAILED'} "
                 f"({result.wall_time_s:.2f} s wall) {result.message}",
                 flush=True,
             )
             if self.config.renders and step.name in RENDER_AFTER:
-                self._render(step.name)
+                self._render_step(step.name)
             if not result.success:
                 self.report.error = f"step {step.name} ({service}) failed: {result.message}"
                 return
 
-    def _sim_clock(self, action: str) -> str | None:
-        """Call ``/sim/pause`` or ``/sim/resume``; None on success, else what went wrong."""
+    def _sim_clock(self, action: str, between_steps: bool = False) -> str | None:
+        """Call ``/sim/pause`` or ``/sim/resume``; None on success, else what went wrong (between
+        steps only printed: the step's own checks report a simulation that does not run)."""
         try:
             reply = rospy.ServiceProxy(f"/sim/{action}", Trigger)()
+            error = None if reply.success else f"/sim/{action} refused: {reply.message}"
         except (rospy.ROSException, rospy.ServiceException) as exc:
-            return f"/sim/{action} failed: {exc}"
-        return None if reply.success else f"/sim/{action} refused: {reply.message}"
-
-    def _sim_clock_between_steps(self, action: str) -> None:
-        """:meth:`_sim_clock`, a failure printed, not fatal (the step's own checks report a
-        simulation that does not run)."""
-        error = self._sim_clock(action)
-        if error is not None:
+            error = f"/sim/{action} failed: {exc}"
+        if error is not None and between_steps:
             print(f"[mission] {error}", flush=True)
-
-    def _render(self, label: str) -> None:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        from ow_mission.render import Camera, render_scene
-
-        with self._lock:
-            joints = dict(self._joints)
-            terrain = self._terrain
-        index = len(list((self.run_dir / "renders").glob("*.png")))
-        image = render_scene(joints, terrain, Camera(target=(self.config.x, self.config.y, 0.1)))
-        plt.imsave(self.run_dir / "renders" / f"{index:02d}_{label}.png", image)
-
-
-def _call_with_timeout(
-    proxy: Callable[..., Any], fields: Mapping[str, Any], timeout_s: float
-) -> Any:
-    """``proxy(**fields)``, or TimeoutError after ``timeout_s`` s of wall time.
-
-    A call that times out is left running in a daemon thread; the mission then stops and shuts
-    the stack down, which ends it.
-
-    Raises:
-        TimeoutError: no answer within ``timeout_s``.
-        Exception: whatever the call raised.
-    """
-    outcome: dict[str, Any] = {}
-
-    def call() -> None:
-        try:
-            outcome["response"] = proxy(**fields)
-        except Exception as exc:  # re-raised in the caller's thread
-            outcome["error"] = exc
-
-    worker = threading.Thread(target=call, name="mission-step", daemon=True)
-    worker.start()
-    worker.join(timeout_s)
-    if worker.is_alive():
-        raise TimeoutError
-    if "error" in outcome:
-        raise outcome["error"]
-    return outcome["response"]
+        return error
 
 
 def main(argv: list[str] | None = None) -> int:
     """``rosrun ow_mission mission [file]``: run a mission, print the table; 0 on success."""
-    args = sys.argv[1:] if argv is None else argv
-    args = [a for a in args if ":=" not in a]  # ROS remapping arguments added by rosrun/roslaunch
-    if len(args) > 1 or (args and args[0] in ("-h", "--help")):
-        print(
-            f"usage: rosrun ow_mission mission [mission.yaml]   (default: {DEFAULT_MISSION_FILE})"
-        )
-        return 0 if args and args[0] in ("-h", "--help") else 2
-    path = Path(args[0]) if args else DEFAULT_MISSION_FILE
     try:
-        config = MissionConfig.load(path)
+        config = config_from_argv(sys.argv[1:] if argv is None else argv)
     except ConfigError as exc:
         print(f"mission: {exc}", file=sys.stderr)
         return 2
+    if config is None:
+        print(USAGE)
+        return 0
     runner = MissionRunner(config, Path.cwd())
     print(f"[mission] {config.name}: writing {runner.run_dir}", flush=True)
     report = runner.run()

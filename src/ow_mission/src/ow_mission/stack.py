@@ -15,9 +15,10 @@ import signal
 import socket
 import subprocess
 import tempfile
+import threading
 import time
 import xmlrpc.client
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -342,3 +343,33 @@ def _process_tree(pid: int) -> list[int]:
     for child in children:
         out += _process_tree(int(child))
     return out
+
+
+def call_with_timeout(
+    proxy: Callable[..., Any], fields: Mapping[str, Any], timeout_s: float
+) -> Any:
+    """``proxy(**fields)``, or TimeoutError after ``timeout_s`` s of wall time.
+
+    A call that times out is left running in a daemon thread; the mission then stops and shuts
+    the stack down, which ends it.
+
+    Raises:
+        TimeoutError: no answer within ``timeout_s``.
+        Exception: whatever the call raised.
+    """
+    outcome: dict[str, Any] = {}
+
+    def call() -> None:
+        try:
+            outcome["response"] = proxy(**fields)
+        except Exception as exc:  # re-raised in the caller's thread
+            outcome["error"] = exc
+
+    worker = threading.Thread(target=call, name="mission-step", daemon=True)
+    worker.start()
+    worker.join(timeout_s)
+    if worker.is_alive():
+        raise TimeoutError
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome["response"]

@@ -1,6 +1,6 @@
-"""The execution side of ``arm_services`` (rospy wiring only): trajectories go to the simulation,
-its observations go to an :class:`~ow_lander.execution.ExecutionMonitor`, whose decisions are
-published."""
+"""The execution side of ``arm_services`` (rospy wiring only; a node module of the arm_services
+node): trajectories go to the simulation, its observations to an
+:class:`~ow_lander.execution.ExecutionMonitor`, whose decisions are published."""
 
 from __future__ import annotations
 
@@ -13,7 +13,6 @@ import tf2_ros
 from geometry_msgs.msg import WrenchStamped
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
-from std_srvs.srv import Trigger
 from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory
 
@@ -30,16 +29,9 @@ from ow_lander.execution import (
     with_settle_pause,
 )
 from ow_lander.model import LanderModel
+from ow_lander.sim_clock_node import SimClock
 from ow_lander.trajectory import Trajectory
 from ow_msgs.msg import GuardedMoveResult
-
-
-def command_topic(joint: str) -> str:
-    """The position-controller command topic of ``joint`` (OceanWATERS names)."""
-    short = joint.removeprefix("j_")
-    if short == "grinder":
-        short = "grinder_yaw"
-    return f"/{short}_position_controller/command"
 
 
 class ArmExecutor:
@@ -68,12 +60,12 @@ class ArmExecutor:
         self._joint_stamp = 0.0
         self._tf = tf2_ros.BufferCore(rospy.Duration(30.0))
         self._monitor: ExecutionMonitor | None = None
-        self._sim_clock_services: bool | None = None
+        self._sim_clock = SimClock(config.service_wait_s)
         self.result_pub = rospy.Publisher(
             "/guarded_move_result", GuardedMoveResult, queue_size=10, latch=True
         )
         self.command_pubs = {
-            j: rospy.Publisher(command_topic(j), Float64, queue_size=10) for j in ARM_JOINTS
+            j: rospy.Publisher(conv.command_topic(j), Float64, queue_size=10) for j in ARM_JOINTS
         }
         self.trajectory_pub = rospy.Publisher(
             "/sim/joint_trajectory", JointTrajectory, queue_size=10
@@ -119,11 +111,11 @@ class ArmExecutor:
                     return
 
     def _on_wrist(self, msg: WrenchStamped) -> None:
-        f = msg.wrench.force
+        f, t = msg.wrench.force, msg.header.stamp.to_sec()
         with self._state_changed:
-            monitor = self._monitor
-            t = msg.header.stamp.to_sec()
-            if monitor is not None and monitor.wrist_force(t, np.array([f.x, f.y, f.z])):
+            if self._monitor is not None and self._monitor.wrist_force(
+                t, np.array([f.x, f.y, f.z])
+            ):
                 self._state_changed.notify_all()
 
     def current_joints(self) -> dict[str, float]:
@@ -219,7 +211,7 @@ class ArmExecutor:
         the message arrives, so its clock is paused while the message is delivered (when it
         offers ``/sim/pause`` and ``/sim/resume``)."""
         cfg = self.config
-        paused = self._sim_clock("pause")
+        paused = self._sim_clock.call("pause")
         try:
             if paused:
                 self._wait_quiet(cfg.delivery_wait_s)
@@ -230,7 +222,7 @@ class ArmExecutor:
                 time.sleep(cfg.delivery_wait_s)
         finally:
             if paused:
-                self._sim_clock("resume")
+                self._sim_clock.call("resume")
         return t_start
 
     def _wait_quiet(self, quiet_s: float, limit_s: float = 1.0) -> None:
@@ -238,28 +230,7 @@ class ArmExecutor:
         carries the paused simulation's time."""
         deadline = time.monotonic() + limit_s
         with self._state_changed:
-            while time.monotonic() < deadline:
+            stamp = None
+            while time.monotonic() < deadline and stamp != self._joint_stamp:
                 stamp = self._joint_stamp
                 self._state_changed.wait(timeout=quiet_s)
-                if self._joint_stamp == stamp:
-                    return
-
-    def _sim_clock(self, action: str) -> bool:
-        """Call ``/sim/<action>`` (pause or resume); False when the simulation has none.
-
-        Whether it has them is looked up once (a simulator without them is used without)."""
-        if self._sim_clock_services is None:
-            try:
-                for name in ("/sim/pause", "/sim/resume"):
-                    rospy.wait_for_service(name, timeout=self.config.service_wait_s)
-                self._sim_clock_services = True
-            except rospy.ROSException:
-                rospy.logwarn("arm_services: no /sim/pause: trajectories start after a delay only")
-                self._sim_clock_services = False
-        if not self._sim_clock_services:
-            return False
-        try:
-            return bool(rospy.ServiceProxy(f"/sim/{action}", Trigger)().success)
-        except rospy.ServiceException as error:
-            rospy.logwarn("arm_services: /sim/%s failed: %s", action, error)
-            return False
