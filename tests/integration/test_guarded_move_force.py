@@ -3,10 +3,10 @@ wrist force/torque sensor the simulation publishes at j_dist_pitch rises over it
 
 import pytest
 import rospy
-from geometry_msgs.msg import WrenchStamped
 
 from ow_lander.description import DEFAULT_GROUND_Z
 from ow_msgs.srv import GuardedMove, Unstow
+from owl_msgs.msg import ArmEndEffectorForceTorque
 
 GROUND = DEFAULT_GROUND_Z
 
@@ -24,9 +24,11 @@ def stack(start_lander):
 
 
 def test_wrist_sensor_reads_zero_in_free_space(stack):
-    msg = rospy.wait_for_message("/arm_end_effector_force_torque", WrenchStamped, timeout=10)
+    msg = rospy.wait_for_message(
+        "/arm_end_effector_force_torque", ArmEndEffectorForceTorque, timeout=10
+    )
     assert msg.header.frame_id == "l_dist"
-    force = msg.wrench.force
+    force = msg.value.force
     assert abs(force.x) + abs(force.y) + abs(force.z) < 1e-6
 
 
@@ -34,8 +36,8 @@ def test_force_detector_finds_the_ground(stack):
     forces = []
     sub = rospy.Subscriber(
         "/arm_end_effector_force_torque",
-        WrenchStamped,
-        lambda m: forces.append(m.wrench.force.x**2 + m.wrench.force.y**2 + m.wrench.force.z**2),
+        ArmEndEffectorForceTorque,
+        lambda m: forces.append(m.value.force.x**2 + m.value.force.y**2 + m.value.force.z**2),
     )
     try:
         response = stack.service("/arm/guarded_move", GuardedMove)(

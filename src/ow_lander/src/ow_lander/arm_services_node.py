@@ -56,8 +56,8 @@ class ArmServicesNode:
     Subscribes: ``/joint_states`` (sensor_msgs/JointState, by joint name): the start of every
         plan and the execution monitor; ``/sim/terrain`` (ow_msgs/HeightMap, latched): the
         terrain checked against; ``/tf``, ``/tf_static``: the scoop tip for ground detection;
-        ``/arm_end_effector_force_torque`` (geometry_msgs/WrenchStamped, N): the wrist force for
-        the force ground detector (``execution/ground_detector: force``).
+        ``/arm_end_effector_force_torque`` (owl_msgs/ArmEndEffectorForceTorque, N): the wrist
+        force for the force ground detector (``execution/ground_detector: force``).
     Publishes: ``/arm/operation`` (ow_msgs/Operation, START and END of every call, effective
         parameters as JSON); ``/sim/joint_trajectory`` (trajectory_msgs/JointTrajectory, the
         default execution interface) or ``/<joint>_position_controller/command``

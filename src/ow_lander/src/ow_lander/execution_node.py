@@ -10,7 +10,6 @@ import time
 import numpy as np
 import rospy
 import tf2_ros
-from geometry_msgs.msg import WrenchStamped
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from tf2_msgs.msg import TFMessage
@@ -32,6 +31,7 @@ from ow_lander.model import LanderModel
 from ow_lander.sim_clock_node import SimClock
 from ow_lander.trajectory import Trajectory
 from ow_msgs.msg import GuardedMoveResult
+from owl_msgs.msg import ArmEndEffectorForceTorque
 
 
 class ArmExecutor:
@@ -39,8 +39,8 @@ class ArmExecutor:
 
     Subscribes: ``/joint_states`` (sensor_msgs/JointState, by joint name); ``/tf``,
         ``/tf_static``: the scoop tip for the velocity ground detector;
-        ``/arm_end_effector_force_torque`` (geometry_msgs/WrenchStamped, N): the wrist force for
-        the force ground detector.
+        ``/arm_end_effector_force_torque`` (owl_msgs/ArmEndEffectorForceTorque, N): the wrist
+        force for the force ground detector.
     Publishes: ``/sim/joint_trajectory`` (trajectory_msgs/JointTrajectory, interface
         ``trajectory``) or ``/<joint>_position_controller/command`` (std_msgs/Float64, rad;
         interface ``position_controllers``, and every hold) for the six arm joints;
@@ -74,7 +74,10 @@ class ArmExecutor:
         rospy.Subscriber("/tf", TFMessage, self._on_tf, queue_size=100)
         rospy.Subscriber("/tf_static", TFMessage, self._on_tf, callback_args=True, queue_size=10)
         rospy.Subscriber(
-            "/arm_end_effector_force_torque", WrenchStamped, self._on_wrist, queue_size=50
+            "/arm_end_effector_force_torque",
+            ArmEndEffectorForceTorque,
+            self._on_wrist,
+            queue_size=50,
         )
 
     # -------------------------------------------------------------------------------- callbacks
@@ -110,8 +113,8 @@ class ArmExecutor:
                     self._state_changed.notify_all()
                     return
 
-    def _on_wrist(self, msg: WrenchStamped) -> None:
-        f, t = msg.wrench.force, msg.header.stamp.to_sec()
+    def _on_wrist(self, msg: ArmEndEffectorForceTorque) -> None:
+        f, t = msg.value.force, msg.header.stamp.to_sec()
         with self._state_changed:
             if self._monitor is not None and self._monitor.wrist_force(
                 t, np.array([f.x, f.y, f.z])

@@ -24,6 +24,7 @@ from ow_sim_bullet.conversions import JointFrame
 from ow_sim_bullet.scheduling import Periodic, Throttle
 from ow_sim_bullet.sim_core import BulletSim
 from ow_sim_bullet.tool_tracking import TOOLS, WRIST_FT_LINK, ToolSnapshot
+from owl_msgs.msg import ArmEndEffectorForceTorque
 
 #: physics steps whose outputs are written together when running faster than real time.
 FLUSH_STEPS = 4
@@ -37,7 +38,8 @@ WIRE_TOPICS: tuple[tuple[str, type], ...] = (
     ("/tf", TFMessage),
     *((f"~{tool}_wrench", WrenchStamped) for tool in TOOLS),
     ("~scoop_tip_ground", PointStamped),
-    ("/arm_end_effector_force_torque", WrenchStamped),
+    # OceanWATERS' type: Header + Wrench, the same bytes as a WrenchStamped.
+    ("/arm_end_effector_force_torque", ArmEndEffectorForceTorque),
     *((f"~{tool}_state", ToolStateMsg) for tool in TOOLS),
     *((f"~{tool}_model_state", ToolStateMsg) for tool in TOOLS),
     *((f"~{tool}_model_wrench", WrenchStamped) for tool in TOOLS),

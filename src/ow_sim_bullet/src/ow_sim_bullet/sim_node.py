@@ -49,7 +49,7 @@ class SimNode:
         /sim/scoop_wrench, /sim/grinder_wrench (geometry_msgs/WrenchStamped): mean contact and
             terrain-model force N and torque N m on the tool since the previous message, in the
             tool link frame about its origin, at ``~wrench_rate_hz``.
-        /arm_end_effector_force_torque (geometry_msgs/WrenchStamped): the wrist force/torque
+        /arm_end_effector_force_torque (owl_msgs/ArmEndEffectorForceTorque): the wrist force/torque
             sensor of later OceanWATERS at j_dist_pitch, tared (gravity of the distal links not
             included): the tools' external wrench, N and N m about the joint, in l_dist, at
             ``~wrench_rate_hz``.
