@@ -34,13 +34,13 @@ def test_contacts_are_summed_per_tool_and_averaged_over_the_steps():
     forces.add_contacts(rows)
     assert forces.normal_force("scoop") == 6.0
     assert forces.normal_force("grinder") == 0.0
-    ((tool, last),) = list(forces.last_contacts())
+    ((tool, last),) = forces.last_contacts
     force = np.array([1.0, 0.5, 6.0])
     assert tool == "scoop"
     assert np.allclose(last, [*force, *np.cross(point, force)])
     forces.add_contacts([])  # a step without contact: the mean is over two steps
     assert forces.normal_force("scoop") == 0.0
-    assert list(forces.last_contacts()) == []
+    assert forces.last_contacts == []
     mean = forces.take_mean("scoop")
     assert mean is not None
     assert np.allclose(mean[0], force / 2)
@@ -69,7 +69,7 @@ def test_reset_forgets_the_forces():
     forces.add_contacts([contact(9, (1.0, 0.0, 0.0), (0.0, 0.0, 1.0), 5.0)])
     forces.reset()
     assert forces.take_mean("grinder") is None
-    assert list(forces.last_contacts()) == []
+    assert forces.last_contacts == []
 
 
 @pytest.mark.parametrize("samples", [1, 4])

@@ -29,8 +29,6 @@ class _Sums:
     """One tool's forces (mutable, sim thread only)."""
 
     last_normal_force: float = 0.0
-    #: (6,) the last step's contact force (N) and moment about the origin (N m), or None.
-    last_contact: list[float] | None = None
     force_sum: FloatArray = field(default_factory=lambda: np.zeros(3))
     moment_sum: FloatArray = field(default_factory=lambda: np.zeros(3))
     #: steps since the last mean.
@@ -51,7 +49,10 @@ class ToolForces:
 
     def __init__(self, link_index: Mapping[str, int]) -> None:
         self._sums = {tool: _Sums() for tool in link_index}
-        self._by_link = {index: self._sums[tool] for tool, index in link_index.items()}
+        self._by_link = {index: (tool, self._sums[tool]) for tool, index in link_index.items()}
+        #: (tool, its last step's contact force N and moment about the origin N m) of each tool
+        #: in contact in the last step.
+        self.last_contacts: list[tuple[str, list[float]]] = []
 
     def reset(self) -> None:
         """Forget every force."""
@@ -61,7 +62,7 @@ class ToolForces:
             sums.samples = 0
             sums.loaded = False
             sums.mean_force = sums.mean_moment = None
-            sums.last_contact = None
+        self.last_contacts = []
 
     def add_contacts(self, contacts: Iterable[Sequence[Any]]) -> None:
         """Add one step's contact forces on each tool to its sums and record its total normal
@@ -95,18 +96,19 @@ class ToolForces:
             found[4] += pz * fx - px * fz
             found[5] += px * fy - py * fx
             found[6] += fn
-        for link, sums in by_link.items():
+        last_contacts = []
+        for link, (tool, sums) in by_link.items():
             sums.samples += 1
             found = totals.get(link)
             if found is None:
                 sums.last_normal_force = 0.0
-                sums.last_contact = None
                 continue
             sums.last_normal_force = found[6]
-            sums.last_contact = found[0:6]
+            last_contacts.append((tool, found[0:6]))
             sums.force_sum += found[0:3]
             sums.moment_sum += found[3:6]
             sums.loaded = True
+        self.last_contacts = last_contacts
 
     def add(self, tool: str, force: FloatArray, moment: FloatArray) -> None:
         """Add a force (3,) N and its moment about the origin (3,) N m to a tool's sums."""
@@ -118,13 +120,6 @@ class ToolForces:
     def normal_force(self, tool: str) -> float:
         """N, the total normal contact force on a tool in the last step."""
         return self._sums[tool].last_normal_force
-
-    def last_contacts(self) -> Iterable[tuple[str, list[float]]]:
-        """(tool, its last step's contact force N and moment about the origin N m) of each tool
-        in contact."""
-        for tool, sums in self._sums.items():
-            if sums.last_contact is not None:
-                yield tool, sums.last_contact
 
     def take_mean(self, tool: str) -> tuple[FloatArray, FloatArray] | None:
         """A tool's mean force (N) and moment about the origin (N m) per step since its last

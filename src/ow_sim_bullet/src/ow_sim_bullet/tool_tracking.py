@@ -255,7 +255,7 @@ class ToolTracker:
         the effort the controller reported). The last step's contact torque is the estimate.
         """
         total = None
-        for tool, wrench in self.forces.last_contacts():
+        for tool, wrench in self.forces.last_contacts:
             fid = self._frame_id[TOOLS[tool][0]]
             jacobian = pin.computeFrameJacobian(
                 self._model, self._data, q, fid, pin.LOCAL_WORLD_ALIGNED
