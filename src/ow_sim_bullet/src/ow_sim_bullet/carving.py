@@ -142,6 +142,7 @@ class TerrainCarver:
         self._install(heightmap)
 
     def _install(self, heightmap: HeightMap) -> None:
+        """Take a copy of ``heightmap`` and make its simulator surface."""
         # C order: carving indexes it through its flat view.
         self._heights = np.array(heightmap.heights, dtype=np.float64, order="C")
         self._heightmap = HeightMap(

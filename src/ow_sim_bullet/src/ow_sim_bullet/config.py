@@ -116,6 +116,7 @@ def _pair(params: Params, key: str, default: tuple[float, float], unit: str) -> 
 
 
 def _non_empty(params: Params, key: str, default: str) -> str:
+    """``key`` as a non-empty string."""
     value = params.string(key, default)
     if not value:
         params.problem(f"{params.name(key)} must be a non-empty string")

@@ -43,6 +43,7 @@ _AXES = np.eye(3)
 
 
 def _xyzw(quaternion: pin.Quaternion) -> Quaternion:
+    """The (x, y, z, w) tuple of a pinocchio quaternion (the order of ROS messages)."""
     x, y, z, w = quaternion.coeffs().tolist()
     return x, y, z, w
 

@@ -173,6 +173,7 @@ class JointController:
         self._update_followed()
 
     def _update_followed(self) -> None:
+        """Derive ``_followed`` from ``_trajectories`` (after any change to it)."""
         followed = []
         for active in dict.fromkeys(self._trajectories.values()):
             pairs = [
@@ -206,6 +207,7 @@ class JointController:
         )
 
     def _set_gains_array(self, joint: str, gains: PidGains) -> None:
+        """Store one joint's gains and update the dampers of the implicit step."""
         k = self.names.index(joint)
         self._kp[k], self._ki[k], self._kd[k] = gains.p, gains.i, gains.d
         self._i_clamp[k] = self._effort_limit[k] if gains.i_clamp is None else gains.i_clamp
@@ -216,6 +218,7 @@ class JointController:
         self._solve_model.armature = self.dt * self._dampers
 
     def _joint(self, joint: str) -> int:
+        """The index of ``joint`` in :attr:`names`; CommandError for an unknown one."""
         try:
             return self.names.index(joint)
         except ValueError:

@@ -224,6 +224,7 @@ class BulletSim:
         return robot, link_index, bullet_index
 
     def _make_surface(self, heightmap: HeightMap) -> BulletTerrain:
+        """The terrain as Bullet heightfields, colliding with the tools if ``tool_contact``."""
         # Both sides' masks exclude the pair when the tools do not touch the terrain (Bullet's
         # filter may be "either side accepts").
         mask = _TOOL_GROUP if self.config.tool_contact else 0

@@ -218,6 +218,7 @@ class SimNode:
 
 
 def _batch_publisher(topic: str, data_class: type) -> wire.BatchPublisher:
+    """A rospy publisher of ``topic`` (queue_size None) written in batches."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SyntaxWarning)
         publisher = rospy.Publisher(topic, data_class, queue_size=None)
@@ -225,6 +226,7 @@ def _batch_publisher(topic: str, data_class: type) -> wire.BatchPublisher:
 
 
 def _set_rostime(sim_time: float) -> None:
+    """Set this node's rospy time to ``sim_time`` (s)."""
     rospy.rostime._set_rostime(rospy.Time(*conversions.stamp_parts(sim_time)))
 
 

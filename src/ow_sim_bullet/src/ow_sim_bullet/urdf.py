@@ -35,6 +35,12 @@ class UrdfJoint:
 def read_urdf_joints(urdf_text: str) -> dict[str, UrdfJoint]:
     """Joints of a URDF document by name, in document order.
 
+    Args:
+        urdf_text: the URDF document.
+
+    Returns:
+        joint name -> its type, links, effort limit and damping.
+
     Raises:
         ConfigError: a movable joint has a friction attribute (not simulated here).
     """
