@@ -14,6 +14,7 @@ import rospy
 from geometry_msgs.msg import Point
 
 from ow_lander import conversions as conv
+from ow_lander.actions_node import ArmActions
 from ow_lander.config import ArmServicesConfig
 from ow_lander.errors import ConfigError, OwLanderError, TrajectoryError
 from ow_lander.execution_node import ArmExecutor
@@ -21,7 +22,7 @@ from ow_lander.model import LanderModel
 from ow_lander.operations import Operations
 from ow_lander.planning import ArmPlanner
 from ow_lander.terrain import HeightMap
-from ow_lander.trajectory import TrajectoryStore, read_csv
+from ow_lander.trajectory import Trajectory, TrajectoryStore, read_csv
 from ow_msgs import srv
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.msg import Operation
@@ -36,8 +37,8 @@ OPERATIONS: dict[str, Any] = {
     "dig_linear": srv.DigLinear,
     "deliver_sample": srv.DeliverSample,
 }
-#: The answer to a request that arrives while another operation runs (it is not queued).
-BUSY = "busy: another arm operation is running; request refused"
+#: The answer to a request or goal that arrives while another one runs (it is not queued).
+BUSY = "busy: {owner} is running; request refused"
 
 #: A service's work: ``body(name, parameters, response)`` fills the response (parameters: the
 #: request's fields, to which it may add the effective ones).
@@ -50,9 +51,10 @@ class ArmServicesNode:
     Services (ow_msgs): ``/arm/unstow`` (Unstow), ``/arm/stow`` (Stow), ``/arm/guarded_move``
         (GuardedMove), ``/arm/grind`` (Grind), ``/arm/dig_circular`` (DigCircular),
         ``/arm/dig_linear`` (DigLinear), ``/arm/deliver_sample`` (DeliverSample),
-        ``/arm/publish_trajectory`` (PublishTrajectory). Busy policy: one operation at a time;
-        a request arriving while another is planning or executing is refused with
-        ``success: false`` and a message starting with "busy"; it is not queued.
+        ``/arm/publish_trajectory`` (PublishTrajectory). Busy policy: one operation at a time,
+        shared with the actions (:mod:`ow_lander.actions_node`); a request arriving while
+        another request or an action goal is planning or executing is refused with
+        ``success: false`` and a message "busy: <what> is running"; it is not queued.
     Subscribes: ``/joint_states`` (sensor_msgs/JointState, by joint name): the start of every
         plan and the execution monitor; ``/sim/terrain`` (ow_msgs/HeightMap, latched): the
         terrain checked against; ``/tf``, ``/tf_static``: the scoop tip for ground detection;
@@ -83,7 +85,8 @@ class ArmServicesNode:
             os.environ.get("ROS_HOME", os.path.expanduser("~/.ros")), "trajectories"
         )
         self.store = TrajectoryStore(Path(directory))
-        self._busy = threading.Lock()
+        self._owner_lock = threading.Lock()
+        self.owner: str | None = None
         self._terrain_changed = threading.Condition(threading.Lock())
         self._terrain: HeightMap | None = None
         self._fallback = HeightMap.flat(config.fallback_ground_z)
@@ -132,14 +135,15 @@ class ArmServicesNode:
 
         def handle(request: Any) -> Any:
             response = service._response_class()
-            if not self._busy.acquire(blocking=False):
+            owner = self.claim(f"/arm/{name} service")
+            if owner is not None:
                 response.success = False
-                response.message = BUSY
+                response.message = BUSY.format(owner=owner)
                 return response
             try:
                 self._operation_id += 1
                 parameters = conv.request_to_dict(request)
-                self._marker(name, Operation.START, parameters)
+                self.marker(name, Operation.START, parameters)
                 try:
                     body(name, parameters, response)
                 except (OwLanderError, ValueError) as error:
@@ -149,35 +153,42 @@ class ArmServicesNode:
                     rospy.logerr("arm_services: %s crashed: %r", name, error)
                     response.success = False
                     response.message = f"{name} failed with an internal error: {error!r}"
-                self._marker(name, Operation.END, parameters, response)
+                self.marker(name, Operation.END, parameters, response)
                 return response
             finally:
-                self._busy.release()
+                self.release()
 
         return handle
 
-    def _marker(self, name: str, event: int, parameters: dict[str, Any], end: Any = None) -> None:
+    def claim(self, owner: str) -> str | None:
+        """Take the arm for ``owner`` (e.g. "TaskGrind goal"); when another one has it,
+        nothing is taken and that one's name returned."""
+        with self._owner_lock:
+            if self.owner is not None:
+                return self.owner
+            self.owner = owner
+            return None
+
+    def release(self) -> None:
+        """Give the arm back (after :meth:`claim`)."""
+        with self._owner_lock:
+            self.owner = None
+
+    def marker(self, name: str, event: int, parameters: dict[str, Any], end: Any = None) -> None:
+        """Publish an ``/arm/operation`` START or END marker (END: ``end`` has success and
+        message)."""
         stamp = rospy.Time.now()
         msg = conv.operation_msg(stamp, self._operation_id, name, event, parameters, end)
         self.operation_pub.publish(msg)
 
     def _operate(self, name: str, parameters: dict[str, Any], response: Any) -> None:
         """Plan operation ``name``, write its trajectory, and execute it (``plan_and_execute``)."""
-        request = dict(parameters)
         notes = []
-        if request.get("delete_prev_traj"):
+        if parameters.get("delete_prev_traj"):
             notes.append(f"deleted {self.store.delete_written()} previous trajectory files")
-        q = self.model.q_from(self.executor.current_joints())
-        terrain, terrain_note = self._current_terrain()
-        if terrain_note:
-            notes.append(terrain_note)
         started = time.perf_counter()
-        plan = self.operations.plan(name, q, terrain, request)
-        notes.extend(plan.notes)
-        trajectory = plan.timed(self.config.timing, self.planner.velocity_limits)
+        trajectory, path = self.plan_to_file(name, parameters, notes)
         response.planning_time = time.perf_counter() - started
-        parameters.update(plan.parameters)
-        path = self.store.save(trajectory)
         response.trajectory_file = str(path)
         response.duration = trajectory.duration
         response.success = True
@@ -190,6 +201,26 @@ class ArmServicesNode:
                 response.ground_found = result.ground_found
                 response.ground_position = Point(*result.ground_position)
         response.message = "; ".join([message, *notes])
+
+    def plan_to_file(
+        self, name: str, parameters: dict[str, Any], notes: list[str]
+    ) -> tuple[Trajectory, Path]:
+        """Plan operation ``name`` from the present joint state and terrain, time it and write
+        its trajectory file; the plan's effective parameters go into ``parameters``, its
+        notes into ``notes``.
+
+        Raises:
+            OwLanderError: no joint state, invalid request or no plan.
+        """
+        q = self.model.q_from(self.executor.current_joints())
+        terrain, terrain_note = self._current_terrain()
+        if terrain_note:
+            notes.append(terrain_note)
+        plan = self.operations.plan(name, q, terrain, dict(parameters))
+        notes.extend(plan.notes)
+        trajectory = plan.timed(self.config.timing, self.planner.velocity_limits)
+        parameters.update(plan.parameters)
+        return trajectory, self.store.save(trajectory)
 
     def _publish(self, name: str, parameters: dict[str, Any], response: Any) -> None:
         """Execute the trajectory file of the request (the newest one with ``use_latest``)."""
@@ -210,7 +241,8 @@ def main() -> None:
     rospy.init_node("arm_services")
     try:
         config = ArmServicesConfig.from_dict(rospy.get_param("~", {}))
-        ArmServicesNode(config)
+        node = ArmServicesNode(config)
+        ArmActions(node)
     except (ConfigError, TrajectoryError) as error:
         rospy.logfatal("arm_services: %s", error)
         sys.exit(1)

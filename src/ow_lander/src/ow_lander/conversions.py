@@ -9,16 +9,16 @@ from typing import TYPE_CHECKING, Any
 
 import genpy
 import numpy as np
-from geometry_msgs.msg import Point
+from geometry_msgs.msg import Point, Pose, Quaternion
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ow_lander.description import BASE_FRAME
 from ow_lander.errors import TerrainError
 from ow_lander.terrain import HeightMap
-from ow_msgs.msg import GuardedMoveResult, Operation
+from ow_msgs.msg import GroundDetectorSignal, GuardedMoveResult, Operation
 
 if TYPE_CHECKING:  # annotations only: reading messages does not load the model (pinocchio)
-    from ow_lander.execution import ExecutionResult
+    from ow_lander.execution import DetectorSignal, ExecutionResult
     from ow_lander.trajectory import Trajectory
 
 
@@ -121,3 +121,46 @@ def command_topic(joint: str) -> str:
     if short == "grinder":
         short = "grinder_yaw"
     return f"/{short}_position_controller/command"
+
+
+def detector_signal_msg(signal: DetectorSignal) -> GroundDetectorSignal:
+    """The ``ow_msgs/GroundDetectorSignal`` of one detector sample."""
+    msg = GroundDetectorSignal()
+    msg.header.stamp = genpy.Time.from_sec(signal.stamp)
+    msg.header.frame_id = BASE_FRAME
+    msg.detector = signal.detector
+    msg.signal = signal.signal
+    msg.moving_average = signal.moving_average
+    msg.threshold = signal.threshold
+    msg.contact = signal.contact
+    return msg
+
+
+def goal_to_dict(goal: Any, prefix: str = "") -> dict[str, Any]:
+    """An action goal's fields, flat: nested messages joined with dots (``pose.position.x``),
+    arrays as lists of floats, numbers as Python numbers."""
+    out: dict[str, Any] = {}
+    for name in goal.__slots__:
+        value = getattr(goal, name)
+        if hasattr(value, "__slots__"):
+            out.update(goal_to_dict(value, f"{prefix}{name}."))
+        elif isinstance(value, list | tuple):
+            out[prefix + name] = [float(v) for v in value]
+        else:
+            out[prefix + name] = float(value) if isinstance(value, float) else value
+    return out
+
+
+def fill_fields(msg: Any, values: Mapping[str, Any]) -> Any:
+    """Set the fields of ``msg`` (an action result or feedback) that ``values`` has: floats,
+    lists, Points ((3,) m) and Poses (((3,) m, (4,) x y z w))."""
+    for name, kind in zip(msg.__slots__, msg._slot_types, strict=True):
+        if name not in values:
+            continue
+        value = values[name]
+        if kind == "geometry_msgs/Pose":
+            value = Pose(Point(*value[0]), Quaternion(*value[1]))
+        elif kind == "geometry_msgs/Point":
+            value = Point(*value)
+        setattr(msg, name, value)
+    return msg

@@ -27,3 +27,7 @@ class PlanningError(OwLanderError):
 
 class TrajectoryError(OwLanderError):
     """A trajectory file is missing, malformed or outside the trajectory directory."""
+
+
+class GoalError(OwLanderError):
+    """An action goal field is not finite, out of range or of the wrong size."""

@@ -7,15 +7,21 @@ The node hands the trajectory to the simulation (or streams its set-points), the
   newest one, whenever it wakes up, with :meth:`ExecutionMonitor.decide`;
 * during a guarded descent, the scoop tip (base_link, m) from tf with
   :meth:`ExecutionMonitor.tip_sample` (``ground_detector: velocity``) or the wrist force (N) with
-  :meth:`ExecutionMonitor.wrist_force` (``ground_detector: force``).
+  :meth:`ExecutionMonitor.wrist_force` (``ground_detector: force``);
+* with ``wrench_limits`` (the guarded actions), the wrist force and torque with
+  :meth:`ExecutionMonitor.wrist_force`: a force/torque guard replaces the ground detector;
+* a stop request (a cancelled action, ``ArmStop``) with :meth:`ExecutionMonitor.request_stop`.
 
 Each :class:`Decision` says what to command and whether the execution is over: the final
-set-point reached, a tracking error, a timeout, ground found (the arm held where it was at the
-contact stamp), or no ground within the searched distance.
+set-point reached, a tracking error, a timeout, ground found or a force/torque threshold
+exceeded (the arm held where it was at the contact stamp), no ground within the searched
+distance, or stopped on request (the arm held where it was at the stop stamp). Every detector
+sample is kept in :attr:`ExecutionMonitor.signals` for the node to publish.
 """
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -25,7 +31,7 @@ import numpy.typing as npt
 
 from ow_lander.config import ExecutionConfig
 from ow_lander.description import ALL_JOINTS, ARM_JOINTS, SCOOP_TIP_FRAME
-from ow_lander.ground_detection import ForceDetector, GroundDetector
+from ow_lander.ground_detection import ForceDetector, GroundDetector, WrenchDetector
 from ow_lander.model import LanderModel
 from ow_lander.trajectory import Trajectory
 
@@ -59,6 +65,28 @@ class ExecutionResult:
     ground_position: FloatArray = field(default_factory=lambda: np.zeros(3))
     reports_ground: bool = False
     contact_time: float | None = None
+    stopped: bool = False
+
+
+@dataclass(frozen=True)
+class DetectorSignal:
+    """One sample of a detector (published as ``ow_msgs/GroundDetectorSignal``).
+
+    Attributes:
+        stamp: s (sim) of the sample.
+        detector: "velocity" (m/s), "force" (N) or "torque" (N m).
+        signal: the sample, in the detector's unit.
+        moving_average: the detector's moving average (= signal when it has none).
+        threshold: the value at which contact is declared (nan while not yet known).
+        contact: contact was declared at this sample.
+    """
+
+    stamp: float
+    detector: str
+    signal: float
+    moving_average: float
+    threshold: float
+    contact: bool
 
 
 @dataclass(frozen=True)
@@ -83,30 +111,42 @@ class GuardWatch:
         start: s (sim), first time of the steady descent (after the settle pause).
         end: s (sim), last time of the steady descent.
         config: the detector choice and its thresholds.
+        wrench_limits: (N, N m) force and torque thresholds of a guarded action: the
+            force/torque guard replaces the configured detector.
 
     Attributes:
-        kind: "velocity" (the paper's detector) or "force" (the wrist force/torque sensor).
+        kind: "velocity" (the paper's detector), "force" (the wrist force/torque sensor) or
+            "wrench" (a guarded action's force and torque thresholds).
         detector: the paper's detector.
         force_detector: the force detector.
+        wrench_detector: the force/torque guard (kind "wrench"), or None.
+        tip_at_contact: m, scoop tip (base_link) at the contact stamp (force and wrench).
         contact_time: s (sim) of the sample at which contact was declared, or None.
         joints: recent (stamp s, joint positions by name) of the descent, to hold the arm where
             it was at contact rather than where the running simulation has pushed it since.
     """
 
-    def __init__(self, start: float, end: float, config: ExecutionConfig) -> None:
+    def __init__(
+        self,
+        start: float,
+        end: float,
+        config: ExecutionConfig,
+        wrench_limits: tuple[float, float] | None = None,
+    ) -> None:
         self.start = start
         self.end = end
-        self.kind = config.ground_detector
+        self.kind = config.ground_detector if wrench_limits is None else "wrench"
         self.detector = GroundDetector(relative_tolerance=config.ground_relative_tolerance)
         self.force_detector = ForceDetector(config.ground_force_threshold_n)
+        self.wrench_detector = None if wrench_limits is None else WrenchDetector(*wrench_limits)
+        self.tip_at_contact: FloatArray | None = None
         self.contact_time: float | None = None
         self.joints: deque[tuple[float, dict[str, float]]] = deque(maxlen=JOINT_HISTORY)
 
     @property
     def contact(self) -> FloatArray | None:
         """m, scoop tip (base_link) where the chosen detector declared contact, or None."""
-        detector = self.detector if self.kind == "velocity" else self.force_detector
-        return detector.contact
+        return self.detector.contact if self.kind == "velocity" else self.tip_at_contact
 
     def watching(self, kind: str, t: float) -> bool:
         """True when the ``kind`` detector still looks for contact at time ``t`` (s, sim)."""
@@ -161,6 +201,12 @@ class ExecutionMonitor:
         config: tolerances, timeouts, the set-point rate and the ground detector.
         model: the lander, for the scoop tip's position by forward kinematics.
         joints: rad by joint name, the joint state when the execution started.
+        wrench_limits: (N, N m), the force and torque thresholds of a guarded action: watched
+            along the guarded segment if the trajectory has one, else along all of it.
+
+    Attributes:
+        signals: detector samples not yet published (the node takes and clears them).
+        stop_time: s (sim) of a stop request, or None.
     """
 
     def __init__(
@@ -170,6 +216,7 @@ class ExecutionMonitor:
         config: ExecutionConfig,
         model: LanderModel,
         joints: Mapping[str, float],
+        wrench_limits: tuple[float, float] | None = None,
     ) -> None:
         self.trajectory = trajectory
         self.t_start = t_start
@@ -177,17 +224,22 @@ class ExecutionMonitor:
         self.model = model
         self.limit = trajectory.duration * config.timeout_factor + config.settle_timeout_s
         self._latest = dict(joints)
+        self._history: deque[tuple[float, dict[str, float]]] = deque(maxlen=JOINT_HISTORY)
         self._next_command = t_start
+        self.signals: list[DetectorSignal] = []
+        self.stop_time: float | None = None
         self.guarded = trajectory.segment_span(GUARDED)
         # The detector watches the *steady* descent (the paper): samples of the acceleration
         # ramp would set its threshold so close to zero velocity that ground which gives a
         # little is never detected, and the braking ramp at the end would look like contact.
         steady = trajectory.steady_span(GUARDED)
         self.guard = (
-            GuardWatch(t_start + steady[0], t_start + steady[1], config)
+            GuardWatch(t_start + steady[0], t_start + steady[1], config, wrench_limits)
             if self.guarded is not None and steady is not None
             else None
         )
+        if self.guard is None and wrench_limits is not None:
+            self.guard = GuardWatch(t_start, t_start + self.limit, config, wrench_limits)
 
     @property
     def contact_time(self) -> float | None:
@@ -196,8 +248,10 @@ class ExecutionMonitor:
 
     # --------------------------------------------------------------------------- observations
     def record_joint_state(self, stamp: float, joints: Mapping[str, float]) -> None:
-        """Keep a joint state (every one received, rad by name) for the contact lookup."""
+        """Keep a joint state (every one received, rad by name) for the contact and stop
+        lookups."""
         self._latest.update(joints)
+        self._history.append((stamp, dict(self._latest)))
         guard = self.guard
         if guard is not None and (guard.contact_time is None or stamp <= guard.contact_time):
             guard.joints.append((stamp, dict(self._latest)))
@@ -211,24 +265,54 @@ class ExecutionMonitor:
         guard = self.guard
         if guard is None or not guard.watching("velocity", t):
             return False
-        if guard.detector.update(t, position):
+        detector = guard.detector
+        fired = detector.update(t, position)
+        if detector.velocity is not None and detector.average is not None:
+            threshold = math.nan if detector.threshold is None else detector.threshold
+            self.signals.append(
+                DetectorSignal(t, "velocity", detector.velocity, detector.average, threshold, fired)
+            )
+        if fired:
             guard.contact_time = t
-            return True
-        return False
+        return fired
 
-    def wrist_force(self, t: float, force: FloatArray) -> bool:
-        """Feed the wrist force (3,) N at time ``t`` (s, sim); True on contact (force detector).
+    def wrist_force(self, t: float, force: FloatArray, torque: FloatArray | None = None) -> bool:
+        """Feed the wrist force (3,) N and torque (3,) N m at time ``t`` (s, sim); True on
+        contact (force detector) or a threshold exceeded (force/torque guard).
 
         The tip position at contact comes from the joint states of that stamp (see
         :meth:`decide`): tf at 30 Hz may lag the 50 Hz wrench by more than the tolerance.
         """
         guard = self.guard
-        if guard is None or not guard.watching("force", t):
+        if guard is None:
             return False
-        if guard.force_detector.update(force):
+        wrench = guard.wrench_detector
+        if wrench is not None and guard.watching("wrench", t):
+            fired = wrench.update(force, np.zeros(3) if torque is None else torque)
+            for kind, value, limit in (
+                ("force", wrench.force, wrench.force_threshold),
+                ("torque", wrench.torque, wrench.torque_threshold),
+            ):
+                self.signals.append(
+                    DetectorSignal(t, kind, value, value, limit, fired and wrench.breach == kind)
+                )
+        elif guard.watching("force", t):
+            detector = guard.force_detector
+            fired = detector.update(force)
+            self.signals.append(
+                DetectorSignal(t, "force", detector.rise, detector.rise, detector.threshold, fired)
+            )
+        else:
+            return False
+        if fired:
             guard.contact_time = t
-            return True
-        return False
+        return fired
+
+    def request_stop(self, stamp: float) -> None:
+        """Stop at ``stamp`` (s, sim; a cancelled action or ``ArmStop``): the next decision
+        holds the arm at the joint state of that stamp and ends the execution as stopped."""
+        if self.stop_time is None:
+            self.stop_time = stamp
 
     # ------------------------------------------------------------------------------ decisions
     def decide(self, stamp: float, joints: Mapping[str, float]) -> Decision:
@@ -243,6 +327,8 @@ class ExecutionMonitor:
         t = stamp - self.t_start
         if self.contact_time is not None:
             return self._contact(here, t)
+        if self.stop_time is not None:
+            return self._stop(here, t)
         setpoints = None
         if cfg.interface == "position_controllers" and stamp >= self._next_command:
             ahead = self.trajectory.sample(max(t + 1.0 / cfg.command_rate_hz, 0.0))
@@ -279,6 +365,17 @@ class ExecutionMonitor:
         hold = {j: self._latest[j] for j in self.trajectory.joints}
         return Decision(None, hold, ExecutionResult(False, message))
 
+    def _stop(self, here: FloatArray, t: float) -> Decision:
+        """Stopped on request: hold the joint state of the stop stamp (the arm goes back there
+        if the simulation ran on before the hold arrived)."""
+        assert self.stop_time is not None
+        before = [values for stamp, values in self._history if stamp <= self.stop_time]
+        names = self.trajectory.joints
+        hold = np.array([before[-1][j] for j in names]) if before else here
+        message = f"stopped on request at t={self.stop_time - self.t_start:.2f} s"
+        result = ExecutionResult(False, message, t, stopped=True)
+        return Decision(None, _by_name(names, hold), result)
+
     def _contact(self, here: FloatArray, t: float) -> Decision:
         """Ground found: hold where the arm was at the contact stamp. The simulation may have
         run on for a while (it runs many times faster than real time): go back there, not
@@ -289,11 +386,12 @@ class ExecutionMonitor:
         at_contact = guard.joints_at_contact()
         if at_contact is not None:
             q_contact = self._q(at_contact)
-            if guard.kind == "force":
+            if guard.kind != "velocity":
                 # Where the tip was at the force reading's stamp (tf may lag it).
-                guard.force_detector.contact = self.model.position(q_contact, SCOOP_TIP_FRAME)
+                guard.tip_at_contact = self.model.position(q_contact, SCOOP_TIP_FRAME)
             hold = np.array([q_contact[self.model.index(j)] for j in self.trajectory.joints])
-        found = ExecutionResult(True, "ground found", t)
+        wrench = guard.wrench_detector
+        found = ExecutionResult(True, "ground found" if wrench is None else wrench.describe(), t)
         return Decision(None, _by_name(self.trajectory.joints, hold), self._finished(found))
 
     def _finished(self, result: ExecutionResult) -> ExecutionResult:
@@ -303,9 +401,10 @@ class ExecutionMonitor:
         guard = self.guard
         if guard is not None and guard.contact_time is not None and guard.contact is not None:
             position = guard.contact
+            found = "ground found" if guard.wrench_detector is None else result.message
             return ExecutionResult(
                 True,
-                f"ground found at z={position[2]:.4f} m (t={guard.contact_time:.2f} s sim)",
+                f"{found} at z={position[2]:.4f} m (t={guard.contact_time:.2f} s sim)",
                 result.duration,
                 ground_found=True,
                 ground_position=position,

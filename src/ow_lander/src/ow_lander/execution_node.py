@@ -7,18 +7,14 @@ from __future__ import annotations
 import threading
 import time
 
-import numpy as np
 import rospy
-import tf2_ros
-from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
-from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory
 
 from ow_lander import conversions as conv
+from ow_lander.arm_observer_node import ArmObserver, SampleCallback
 from ow_lander.config import ExecutionConfig
-from ow_lander.description import ALL_JOINTS, ARM_JOINTS, BASE_FRAME, SCOOP_TIP_FRAME
-from ow_lander.errors import PlanningError
+from ow_lander.description import ARM_JOINTS
 from ow_lander.execution import (
     Decision,
     ExecutionMonitor,
@@ -31,16 +27,12 @@ from ow_lander.model import LanderModel
 from ow_lander.sim_clock_node import SimClock
 from ow_lander.trajectory import Trajectory
 from ow_msgs.msg import GuardedMoveResult
-from owl_msgs.msg import ArmEndEffectorForceTorque
 
 
-class ArmExecutor:
+class ArmExecutor(ArmObserver):
     """Executes trajectories on the simulation, watched on simulation time.
 
-    Subscribes: ``/joint_states`` (sensor_msgs/JointState, by joint name); ``/tf``,
-        ``/tf_static``: the scoop tip for the velocity ground detector;
-        ``/arm_end_effector_force_torque`` (owl_msgs/ArmEndEffectorForceTorque, N): the wrist
-        force for the force ground detector.
+    Subscribes and publishes as :class:`~ow_lander.arm_observer_node.ArmObserver`, and
     Publishes: ``/sim/joint_trajectory`` (trajectory_msgs/JointTrajectory, interface
         ``trajectory``) or ``/<joint>_position_controller/command`` (std_msgs/Float64, rad;
         interface ``position_controllers``, and every hold) for the six arm joints;
@@ -53,13 +45,10 @@ class ArmExecutor:
     """
 
     def __init__(self, config: ExecutionConfig, model: LanderModel) -> None:
+        super().__init__(config.joint_state_timeout_s)
         self.config = config
         self.model = model
-        self._state_changed = threading.Condition(threading.Lock())
-        self._joints: dict[str, float] = {}
-        self._joint_stamp = 0.0
-        self._tf = tf2_ros.BufferCore(rospy.Duration(30.0))
-        self._monitor: ExecutionMonitor | None = None
+        self._stopped = threading.Event()
         self._sim_clock = SimClock(config.service_wait_s)
         self.result_pub = rospy.Publisher(
             "/guarded_move_result", GuardedMoveResult, queue_size=10, latch=True
@@ -70,81 +59,17 @@ class ArmExecutor:
         self.trajectory_pub = rospy.Publisher(
             "/sim/joint_trajectory", JointTrajectory, queue_size=10
         )
-        rospy.Subscriber("/joint_states", JointState, self._on_joint_states, queue_size=100)
-        rospy.Subscriber("/tf", TFMessage, self._on_tf, queue_size=100)
-        rospy.Subscriber("/tf_static", TFMessage, self._on_tf, callback_args=True, queue_size=10)
-        rospy.Subscriber(
-            "/arm_end_effector_force_torque",
-            ArmEndEffectorForceTorque,
-            self._on_wrist,
-            queue_size=50,
-        )
-
-    # -------------------------------------------------------------------------------- callbacks
-    def _on_joint_states(self, msg: JointState) -> None:
-        values = conv.joint_positions(list(msg.name), msg.position)
-        with self._state_changed:
-            self._joints.update(values)
-            self._joint_stamp = msg.header.stamp.to_sec()
-            if self._monitor is not None:
-                self._monitor.record_joint_state(self._joint_stamp, self._joints)
-            self._state_changed.notify_all()
-
-    def _on_tf(self, msg: TFMessage, static: bool = False) -> None:
-        """Feed tf2; during a guarded descent, sample the scoop tip at each tf stamp."""
-        stamps = set()
-        for transform in msg.transforms:
-            if static:
-                self._tf.set_transform_static(transform, "sim")
-            else:
-                self._tf.set_transform(transform, "sim")
-                stamps.add(transform.header.stamp)
-        for stamp in sorted(stamps):
-            monitor = self._monitor
-            if monitor is None or not monitor.wants_tip(stamp.to_sec()):
-                continue
-            try:
-                tip = self._tf.lookup_transform_core(BASE_FRAME, SCOOP_TIP_FRAME, stamp)
-            except tf2_ros.TransformException:
-                continue  # not every link's transform of this stamp has arrived yet
-            p = tip.transform.translation
-            with self._state_changed:
-                if monitor.tip_sample(stamp.to_sec(), np.array([p.x, p.y, p.z])):
-                    self._state_changed.notify_all()
-                    return
-
-    def _on_wrist(self, msg: ArmEndEffectorForceTorque) -> None:
-        f, t = msg.value.force, msg.header.stamp.to_sec()
-        with self._state_changed:
-            if self._monitor is not None and self._monitor.wrist_force(
-                t, np.array([f.x, f.y, f.z])
-            ):
-                self._state_changed.notify_all()
-
-    def current_joints(self) -> dict[str, float]:
-        """rad by name, the latest joint state of the lander's joints; waits for the first one.
-
-        Raises:
-            PlanningError: none with every arm joint within ``joint_state_timeout_s``, or the
-                node is shutting down.
-        """
-        deadline = time.monotonic() + self.config.joint_state_timeout_s
-        while not rospy.is_shutdown():
-            with self._state_changed:
-                missing = [j for j in ARM_JOINTS if j not in self._joints]
-                if not missing:
-                    return {j: v for j, v in self._joints.items() if j in ALL_JOINTS}
-            if time.monotonic() > deadline:
-                msg = f"no /joint_states with the arm joints ({', '.join(missing)}) received"
-                raise PlanningError(msg)
-            time.sleep(0.01)
-        msg = "shutting down"
-        raise PlanningError(msg)
 
     # ------------------------------------------------------------------------------ execution
-    def execute(self, trajectory: Trajectory) -> ExecutionResult:
+    def execute(
+        self,
+        trajectory: Trajectory,
+        wrench_limits: tuple[float, float] | None = None,
+        on_sample: SampleCallback | None = None,
+    ) -> ExecutionResult:
         """Execute ``trajectory`` and watch it until it ends (see :mod:`ow_lander.execution`);
-        publish a guarded descent's result once.
+        publish a guarded descent's result once. ``wrench_limits`` (N, N m): a guarded
+        action's force/torque thresholds; ``on_sample``: called on every joint state meanwhile.
 
         Raises:
             PlanningError: no joint state to start from.
@@ -160,12 +85,17 @@ class ArmExecutor:
             with self._state_changed:
                 t_start = self._joint_stamp + cfg.start_delay_s
         with self._state_changed:
-            monitor = ExecutionMonitor(trajectory, t_start, cfg, self.model, self._joints)
-            self._monitor = monitor
+            monitor = ExecutionMonitor(
+                trajectory, t_start, cfg, self.model, self._joints, wrench_limits
+            )
+            self._monitor, self._on_sample = monitor, on_sample
+            self._stopped.clear()
         try:
             result = self._follow(monitor)
         finally:
-            self._monitor = None
+            with self._state_changed:
+                self._monitor, self._on_sample = None, None
+            self._stopped.set()
         if result.reports_ground:
             found = result.contact_time
             stamp = rospy.Time.now() if found is None else rospy.Time(found)
@@ -179,7 +109,8 @@ class ArmExecutor:
         while not rospy.is_shutdown():
 
             def news(last: float = last) -> bool:
-                return self._joint_stamp != last or monitor.contact_time is not None
+                stop = monitor.stop_time is not None
+                return self._joint_stamp != last or monitor.contact_time is not None or stop
 
             with self._state_changed:
                 arrived = self._state_changed.wait_for(news, self.config.joint_state_timeout_s)
@@ -199,6 +130,26 @@ class ArmExecutor:
             if decision.result is not None:
                 return decision.result
         return ExecutionResult(False, "shutting down")
+
+    def stop(self) -> bool:
+        """Stop the running execution where the arm is now and hold it there; False when none
+        runs. The simulation's clock is paused from the stop request until the hold is
+        delivered, so the arm stops at once in simulation time at any simulation speed."""
+        paused = self._sim_clock.call("pause")
+        try:
+            with self._state_changed:
+                monitor = self._monitor
+                if monitor is not None:
+                    monitor.request_stop(self._joint_stamp)
+                    self._state_changed.notify_all()
+            if monitor is not None:
+                self._stopped.wait(timeout=self.config.joint_state_timeout_s)
+                if paused:
+                    time.sleep(self.config.delivery_wait_s)
+        finally:
+            if paused:
+                self._sim_clock.call("resume")
+        return monitor is not None
 
     def _command(self, decision: Decision) -> None:
         """Publish a decision's set-points, then its hold."""

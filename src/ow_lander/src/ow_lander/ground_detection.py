@@ -73,6 +73,16 @@ class GroundDetector:
             self._last = (t, position)
         return self.contact is not None
 
+    @property
+    def velocity(self) -> float | None:
+        """m/s, the latest z velocity sample, or None before two positions."""
+        return self._velocities[-1] if self._velocities else None
+
+    @property
+    def average(self) -> float | None:
+        """m/s, the moving average of the z velocity, or None before two positions."""
+        return float(np.mean(self._velocities)) if self._velocities else None
+
 
 class ForceDetector:
     """Contact when the wrist force rises by ``threshold`` N over its first reading (the tare),
@@ -91,6 +101,7 @@ class ForceDetector:
         self.tare: FloatArray | None = None
         self.fired = False
         self.contact: FloatArray | None = None
+        self.rise = 0.0
 
     def update(self, force: FloatArray, position: FloatArray | None = None) -> bool:
         """Add a force reading (3,) N, with the scoop tip ``position`` (3,) m at that time when
@@ -104,8 +115,63 @@ class ForceDetector:
         force = np.asarray(force, dtype=np.float64)
         if self.tare is None:
             self.tare = force.copy()
-        elif float(np.linalg.norm(force - self.tare)) >= self.threshold:
+            return False
+        self.rise = float(np.linalg.norm(force - self.tare))
+        if self.rise >= self.threshold:
             self.fired = True
             if position is not None:
                 self.contact = np.asarray(position, dtype=np.float64).copy()
         return self.fired
+
+
+class WrenchDetector:
+    """A force/torque guard (OceanWATERS' guarded actions): it fires when the wrist force
+    magnitude or the torque magnitude, each measured from the first reading (the tare, as
+    :class:`ForceDetector`), exceeds its threshold.
+
+    Args:
+        force_threshold: N, > 0, largest allowed rise of the force magnitude.
+        torque_threshold: N m, > 0, largest allowed rise of the torque magnitude.
+
+    Attributes:
+        force: N, magnitude of the force change at the latest reading (0 before any).
+        torque: N m, magnitude of the torque change at the latest reading.
+        breach: "force" or "torque" once a threshold was exceeded, else None.
+    """
+
+    def __init__(self, force_threshold: float, torque_threshold: float) -> None:
+        self.force_threshold = force_threshold
+        self.torque_threshold = torque_threshold
+        self.tare: tuple[FloatArray, FloatArray] | None = None
+        self.force = 0.0
+        self.torque = 0.0
+        self.breach: str | None = None
+
+    def update(self, force: FloatArray, torque: FloatArray) -> bool:
+        """Add a reading, ``force`` (3,) N and ``torque`` (3,) N m; True once a threshold has
+        been exceeded (the readings after it are ignored)."""
+        if self.breach is not None:
+            return True
+        force = np.asarray(force, dtype=np.float64)
+        torque = np.asarray(torque, dtype=np.float64)
+        if self.tare is None:
+            self.tare = (force.copy(), torque.copy())
+            return False
+        self.force = float(np.linalg.norm(force - self.tare[0]))
+        self.torque = float(np.linalg.norm(torque - self.tare[1]))
+        if self.force > self.force_threshold:
+            self.breach = "force"
+        elif self.torque > self.torque_threshold:
+            self.breach = "torque"
+        return self.breach is not None
+
+    def describe(self) -> str:
+        """What fired, with the measured value and the threshold (or that nothing did)."""
+        if self.breach == "force":
+            return f"force {self.force:.1f} N exceeded force_threshold {self.force_threshold} N"
+        if self.breach == "torque":
+            return (
+                f"torque {self.torque:.2f} N m exceeded torque_threshold "
+                f"{self.torque_threshold} N m"
+            )
+        return "no force/torque threshold exceeded"

@@ -84,6 +84,9 @@ class Operations:
             "dig_circular": lambda q_: self.plan_dig_circular(q_, terrain, values),
             "dig_linear": lambda q_: self.plan_dig_linear(q_, terrain, values),
             "deliver_sample": lambda q_: self.plan_deliver_sample(q_, terrain, values),
+            "discard": lambda q_: self.plan_discard(q_, terrain, values),
+            "move_joints": lambda q_: self.plan_move_joints(q_, terrain, values),
+            "move_cartesian": lambda q_: self.plan_move_cartesian(q_, terrain, values),
         }
         if name not in planners:
             msg = f"unknown operation {name!r}; known: {', '.join(planners)}"
@@ -190,6 +193,48 @@ class Operations:
             return self._delivery(approach, tip, p)
         msg = f"no way to pour at ({point[0]:.3f}, {point[1]:.3f}, {point[2]:.3f}) m: {errors[0]}"
         raise PlanningError(msg)
+
+    def plan_discard(
+        self, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]
+    ) -> OperationPlan:
+        """Discard the sample: carry the scoop upright to (x, y, z) and tip it there (the
+        action TaskDiscardSample; the point is already raised by its ``height``)."""
+        plan = self.plan_deliver_sample(q, terrain, {**request, "use_defaults": False})
+        return OperationPlan("discard", plan.segments, plan.parameters)
+
+    def plan_move_joints(
+        self, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]
+    ) -> OperationPlan:
+        """Free-space motion to the arm joints ``angles`` (6,) rad, shoulder to scoop.
+
+        Raises:
+            PlanningError: a target outside its joint limits, in collision, or no path.
+        """
+        start = self.motions.start(q, terrain)
+        goal = np.asarray(request["angles"], dtype=np.float64)
+        bad = self.model.limit_violations(self.planner.full(goal, q))
+        if bad:
+            msg = f"target out of the joint limits: {'; '.join(bad)}"
+            raise PlanningError(msg)
+        path = self.planner.plan_free(start, goal, self.motions.context(q, terrain))
+        return OperationPlan("move_joints", [PathSegment("move", path)], {})
+
+    def plan_move_cartesian(
+        self, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]
+    ) -> OperationPlan:
+        """Free-space motion putting the scoop tip at ``position`` (3,) m with ``rotation``
+        (3, 3) in base_link (IK on the arm's present branch, as MoveIt's pose targets).
+
+        Raises:
+            PlanningError: out of reach, in collision, or no path.
+        """
+        start = self.motions.start(q, terrain)
+        ctx = self.motions.context(q, terrain)
+        position = np.asarray(request["position"], dtype=np.float64)
+        rotation = np.asarray(request["rotation"], dtype=np.float64)
+        goal = self.planner.solve_ik(SCOOP_TIP_FRAME, position, rotation, start, ctx)
+        path = self.planner.plan_free(start, goal, ctx)
+        return OperationPlan("move_cartesian", [PathSegment("move", path)], {})
 
     @staticmethod
     def _delivery(approach: FloatArray, tip: FloatArray, p: dict[str, Any]) -> OperationPlan:

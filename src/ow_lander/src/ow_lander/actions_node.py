@@ -1,0 +1,228 @@
+"""OceanWATERS' arm and task actions (owl_msgs) served by ``arm_services`` (rospy wiring only):
+the same planning, execution, busy policy and trajectory files as the paper's services."""
+
+from __future__ import annotations
+
+import threading
+from functools import partial
+from types import SimpleNamespace
+from typing import Any, Protocol
+
+import actionlib
+import numpy as np
+import rospy
+
+import owl_msgs.msg as owl
+from ow_lander import conversions as conv
+from ow_lander.actions import (
+    ARM_ACTIONS,
+    CARTESIAN_TOLERANCE,
+    ActionRequest,
+    action_values,
+    arm_state,
+    pose_error,
+    to_request,
+    validate_goal,
+)
+from ow_lander.errors import OwLanderError
+from ow_lander.execution import ExecutionResult
+from ow_lander.execution_node import ArmExecutor
+from ow_lander.model import LanderModel
+from ow_lander.operations import Operations
+from ow_lander.trajectory import Trajectory
+from ow_msgs.msg import Operation
+
+#: s (sim), feedback period: 20 Hz of simulation time (from the joint-state stream).
+FEEDBACK_PERIOD_S = 0.05
+#: The refusal of a goal arriving while another goal or a service request runs.
+BUSY = "busy: {owner} is running"
+
+
+class ArmOwner(Protocol):
+    """What the actions use of :class:`~ow_lander.arm_services_node.ArmServicesNode`."""
+
+    model: LanderModel
+    operations: Operations
+    executor: ArmExecutor
+
+    def claim(self, owner: str) -> str | None: ...
+
+    def release(self) -> None: ...
+
+    def marker(self, name: str, event: int, parameters: dict[str, Any], end: Any) -> None: ...
+
+    def plan_to_file(self, name: str, parameters: dict[str, Any], notes: list[str]) -> Any: ...
+
+
+class ArmActions:
+    """The arm and task action servers (actionlib.ActionServer, one goal at a time).
+
+    Actions (owl_msgs, plain names): ``ArmUnstow``, ``ArmStow``, ``ArmMoveJoint``,
+        ``ArmMoveJoints``, ``ArmMoveJointsGuarded``, ``ArmMoveCartesian``,
+        ``ArmMoveCartesianGuarded``, ``ArmFindSurface``, ``TaskGrind``, ``TaskScoopCircular``,
+        ``TaskScoopLinear``, ``TaskDeliverSample``, ``TaskDiscardSample``, and ``ArmStop``
+        (stops whatever arm execution runs, a goal's or a service's; aborts when none does).
+    Goals: a goal with a bad field is rejected naming the field, its value and the limit; a
+        goal arriving while another goal or a service request runs is rejected with
+        "busy: <what> is running"; a goal that cannot be planned is aborted with the reason.
+        Cancelling the running goal stops the arm where it is and holds it (PREEMPTED, the
+        result filled with where it stopped).
+    Feedback: every ``FEEDBACK_PERIOD_S`` of simulation time during execution (actions that
+        have feedback fields): joint angles (rad, shoulder to scoop), ``l_scoop_tip`` pose in
+        base_link (m, quaternion), wrist force (N) and torque (N m) magnitudes, distance (m).
+    Publishes ``/arm/operation`` START/END markers as the services do.
+
+    Args:
+        node: the arm services (planning, execution, the busy owner, markers).
+    """
+
+    def __init__(self, node: ArmOwner) -> None:
+        self.node = node
+        self._lock = threading.Lock()
+        self._running: Any = None
+        self._cancelled = threading.Event()
+        self.servers = []
+        for name in ARM_ACTIONS:
+            action = getattr(owl, f"{name}Action")
+            self.servers.append(
+                actionlib.ActionServer(
+                    name,
+                    action,
+                    partial(self._on_goal, name),
+                    self._on_cancel,
+                    auto_start=False,
+                )
+            )
+        self.servers.append(
+            actionlib.ActionServer("ArmStop", owl.ArmStopAction, self._on_stop, auto_start=False)
+        )
+        for server in self.servers:
+            server.start()
+
+    # ------------------------------------------------------------------------------- goals
+    def _on_goal(self, name: str, handle: Any) -> None:
+        goal = conv.goal_to_dict(handle.get_goal())
+        try:
+            validate_goal(name, goal)
+        except OwLanderError as error:
+            handle.set_rejected(text=f"{name}: {error}")
+            return
+        owner = self.node.claim(f"{name} goal")
+        if owner is not None:
+            handle.set_rejected(text=BUSY.format(owner=owner))
+            return
+        with self._lock:
+            self._running = handle.get_goal_id().id
+            self._cancelled.clear()
+        handle.set_accepted()
+        threading.Thread(target=self._run, args=(name, handle, goal), daemon=True).start()
+
+    def _on_cancel(self, handle: Any) -> None:
+        with self._lock:
+            ours = self._running == handle.get_goal_id().id
+            if ours:
+                self._cancelled.set()
+        if ours:
+            self.node.executor.stop()
+
+    def _on_stop(self, handle: Any) -> None:
+        handle.set_accepted()
+        if self.node.executor.stop():
+            handle.set_succeeded(text="stopped the arm; it holds where it stopped")
+        else:
+            handle.set_aborted(text="nothing to stop: no arm trajectory is running")
+
+    # ----------------------------------------------------------------------------- running
+    def _run(self, name: str, handle: Any, goal: dict[str, Any]) -> None:
+        parameters = dict(goal)
+        self.node.marker(name, Operation.START, parameters, None)
+        end = SimpleNamespace(success=False, message="")
+        try:
+            end.success, end.message = self._carry_out(name, handle, goal, parameters)
+        except OwLanderError as error:
+            end.message = f"{name} failed: {error}"
+            handle.set_aborted(self._result(name, None), end.message)
+        except Exception as error:
+            rospy.logerr("arm_services: %s goal crashed: %r", name, error)
+            end.message = f"{name} failed with an internal error: {error!r}"
+            handle.set_aborted(text=end.message)
+        finally:
+            with self._lock:
+                self._running = None
+            self.node.release()
+            self.node.marker(name, Operation.END, parameters, end)
+
+    def _carry_out(
+        self, name: str, handle: Any, goal: dict[str, Any], parameters: dict[str, Any]
+    ) -> tuple[bool, str]:
+        """Plan, execute and end the goal (succeeded, aborted or preempted)."""
+        executor = self.node.executor
+        start = arm_state(self.node.model, executor.current_joints(), *executor.wrench())
+        request = to_request(
+            name, goal, start.angles, start.X_base_tip, self.node.operations.motions.yaw
+        )
+        parameters.update(request.request)
+        trajectory: Trajectory
+        trajectory, path = self.node.plan_to_file(request.operation, parameters, request.notes)
+        if self._cancelled.is_set():
+            handle.set_canceled(self._result(name, request), "cancelled before execution")
+            return False, "cancelled before execution"
+        feedback = partial(self._feedback, name, handle, request, [-np.inf])
+        result = executor.execute(trajectory, request.wrench_limits, feedback)
+        success, message = self._outcome(name, request, result)
+        message = "; ".join([f"{message} ({path.name})", *request.notes])
+        values = self._result(name, request)
+        if result.stopped:
+            handle.set_canceled(values, message)
+        elif success:
+            handle.set_succeeded(values, message)
+        else:
+            handle.set_aborted(values, message)
+        return success, message
+
+    def _outcome(
+        self, name: str, request: ActionRequest, result: ExecutionResult
+    ) -> tuple[bool, str]:
+        """Success and message of an execution, with the action's own checks."""
+        if not result.success:
+            return False, result.message
+        if name == "ArmFindSurface" and not result.ground_found:
+            return False, f"No surface was found: {result.message}"
+        if request.target_pose is not None and not result.ground_found:
+            state = self._state()
+            distance, angle = pose_error(request.target_pose, state.X_base_tip)
+            if distance > CARTESIAN_TOLERANCE[0] or angle > CARTESIAN_TOLERANCE[1]:
+                return False, (
+                    f"the tool ended {distance:.4f} m and {angle:.4f} rad from the target "
+                    f"(tolerance {CARTESIAN_TOLERANCE[0]} m, {CARTESIAN_TOLERANCE[1]} rad)"
+                )
+        return True, result.message
+
+    def _state(self) -> Any:
+        executor = self.node.executor
+        return arm_state(self.node.model, executor.current_joints(), *executor.wrench())
+
+    def _result(self, name: str, request: ActionRequest | None) -> Any:
+        """The result message of ``name`` filled with where the arm is now."""
+        point = None if request is None else request.surface_point
+        values = action_values(self._state(), point)
+        return conv.fill_fields(getattr(owl, f"{name}Result")(), values)
+
+    def _feedback(
+        self,
+        name: str,
+        handle: Any,
+        request: ActionRequest,
+        last: list[float],
+        stamp: float,
+        joints: dict[str, float],
+        force: np.ndarray,
+        torque: np.ndarray,
+    ) -> None:
+        """Publish feedback on a joint state, at most every ``FEEDBACK_PERIOD_S`` (sim)."""
+        msg = getattr(owl, f"{name}Feedback")()
+        if not msg.__slots__ or stamp < last[0] + FEEDBACK_PERIOD_S:
+            return
+        last[0] = stamp
+        state = arm_state(self.node.model, joints, force, torque)
+        handle.publish_feedback(conv.fill_fields(msg, action_values(state, request.surface_point)))

@@ -1,0 +1,142 @@
+"""The observing side of ``arm_services`` (rospy wiring only): joint states, tf and the wrist
+force/torque sensor fed to the running :class:`~ow_lander.execution.ExecutionMonitor`, its
+detector samples published."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+
+import numpy as np
+import rospy
+import tf2_ros
+from sensor_msgs.msg import JointState
+from tf2_msgs.msg import TFMessage
+
+from ow_lander import conversions as conv
+from ow_lander.description import ALL_JOINTS, ARM_JOINTS, BASE_FRAME, SCOOP_TIP_FRAME
+from ow_lander.errors import PlanningError
+from ow_lander.execution import ExecutionMonitor
+from ow_msgs.msg import GroundDetectorSignal
+from owl_msgs.msg import ArmEndEffectorForceTorque
+
+#: Called with (stamp s sim, joints rad by name, wrist force (3,) N, torque (3,) N m) on every
+#: joint state during an execution (the actions' feedback).
+SampleCallback = Callable[[float, dict[str, float], np.ndarray, np.ndarray], None]
+
+
+class ArmObserver:
+    """What the arm services observe, on simulation time.
+
+    Subscribes: ``/joint_states`` (sensor_msgs/JointState, by joint name); ``/tf``,
+        ``/tf_static``: the scoop tip for the velocity ground detector;
+        ``/arm_end_effector_force_torque`` (owl_msgs/ArmEndEffectorForceTorque, N, N m): the
+        wrist force and torque for the force detector and the guarded actions.
+    Publishes: ``/arm/ground_detector`` (ow_msgs/GroundDetectorSignal) every detector sample.
+
+    Args:
+        joint_state_timeout_s: s (wall), how long :meth:`current_joints` waits.
+    """
+
+    def __init__(self, joint_state_timeout_s: float) -> None:
+        self.joint_state_timeout_s = joint_state_timeout_s
+        self._state_changed = threading.Condition(threading.Lock())
+        self._joints: dict[str, float] = {}
+        self._joint_stamp = 0.0
+        self._tf = tf2_ros.BufferCore(rospy.Duration(30.0))
+        self._monitor: ExecutionMonitor | None = None
+        self._on_sample: SampleCallback | None = None
+        self._wrench = (np.zeros(3), np.zeros(3))
+        self.signal_pub = rospy.Publisher(
+            "/arm/ground_detector", GroundDetectorSignal, queue_size=100
+        )
+        rospy.Subscriber("/joint_states", JointState, self._on_joint_states, queue_size=100)
+        rospy.Subscriber("/tf", TFMessage, self._on_tf, queue_size=100)
+        rospy.Subscriber("/tf_static", TFMessage, self._on_tf, callback_args=True, queue_size=10)
+        rospy.Subscriber(
+            "/arm_end_effector_force_torque",
+            ArmEndEffectorForceTorque,
+            self._on_wrist,
+            queue_size=50,
+        )
+
+    def _on_joint_states(self, msg: JointState) -> None:
+        values = conv.joint_positions(list(msg.name), msg.position)
+        with self._state_changed:
+            self._joints.update(values)
+            self._joint_stamp = msg.header.stamp.to_sec()
+            if self._monitor is not None:
+                self._monitor.record_joint_state(self._joint_stamp, self._joints)
+            self._state_changed.notify_all()
+            on_sample, joints, (force, torque) = self._on_sample, dict(self._joints), self._wrench
+        if on_sample is not None:
+            on_sample(msg.header.stamp.to_sec(), joints, force, torque)
+
+    def _on_tf(self, msg: TFMessage, static: bool = False) -> None:
+        """Feed tf2; during a guarded descent, sample the scoop tip at each tf stamp."""
+        stamps = set()
+        for transform in msg.transforms:
+            if static:
+                self._tf.set_transform_static(transform, "sim")
+            else:
+                self._tf.set_transform(transform, "sim")
+                stamps.add(transform.header.stamp)
+        for stamp in sorted(stamps):
+            monitor = self._monitor
+            if monitor is None or not monitor.wants_tip(stamp.to_sec()):
+                continue
+            try:
+                tip = self._tf.lookup_transform_core(BASE_FRAME, SCOOP_TIP_FRAME, stamp)
+            except tf2_ros.TransformException:
+                continue  # not every link's transform of this stamp has arrived yet
+            p = tip.transform.translation
+            with self._state_changed:
+                contact = monitor.tip_sample(stamp.to_sec(), np.array([p.x, p.y, p.z]))
+                if contact:
+                    self._state_changed.notify_all()
+            self._publish_signals(monitor)
+            if contact:
+                return
+
+    def _on_wrist(self, msg: ArmEndEffectorForceTorque) -> None:
+        f, m, t = msg.value.force, msg.value.torque, msg.header.stamp.to_sec()
+        force, torque = np.array([f.x, f.y, f.z]), np.array([m.x, m.y, m.z])
+        with self._state_changed:
+            self._wrench = (force, torque)
+            monitor = self._monitor
+            if monitor is not None and monitor.wrist_force(t, force, torque):
+                self._state_changed.notify_all()
+        if monitor is not None:
+            self._publish_signals(monitor)
+
+    def _publish_signals(self, monitor: ExecutionMonitor) -> None:
+        with self._state_changed:
+            signals, monitor.signals = monitor.signals, []
+        for signal in signals:
+            self.signal_pub.publish(conv.detector_signal_msg(signal))
+
+    def current_joints(self) -> dict[str, float]:
+        """rad by name, the latest joint state of the lander's joints; waits for the first one.
+
+        Raises:
+            PlanningError: none with every arm joint within ``joint_state_timeout_s``, or the
+                node is shutting down.
+        """
+        deadline = time.monotonic() + self.joint_state_timeout_s
+        while not rospy.is_shutdown():
+            with self._state_changed:
+                missing = [j for j in ARM_JOINTS if j not in self._joints]
+                if not missing:
+                    return {j: v for j, v in self._joints.items() if j in ALL_JOINTS}
+            if time.monotonic() > deadline:
+                msg = f"no /joint_states with the arm joints ({', '.join(missing)}) received"
+                raise PlanningError(msg)
+            time.sleep(0.01)
+        msg = "shutting down"
+        raise PlanningError(msg)
+
+    def wrench(self) -> tuple[np.ndarray, np.ndarray]:
+        """The latest wrist reading: force (3,) N and torque (3,) N m (zeros before one)."""
+        with self._state_changed:
+            return self._wrench
