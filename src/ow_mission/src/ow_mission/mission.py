@@ -24,8 +24,9 @@ from ow_lander.terrain import HeightMap
 from ow_mission.mission_config import MissionConfig
 from ow_mission.node_config import stack_parameters
 
-#: Steps after which a render of the arm is taken.
-RENDER_AFTER = ("guarded_move", "grind", "dig_sample", "deliver_sample")
+#: Steps after which the mission renders the arm while it runs: none, the renders are made from
+#: the bags after the run, off the mission's critical path (:mod:`ow_mission.report`).
+RENDER_AFTER: tuple[str, ...] = ()
 
 
 @dataclass
@@ -126,14 +127,14 @@ class MissionReport:
     def table(self) -> str:
         """The per-operation table printed at the end of a run."""
         header = (
-            f"{'step':<16}{'service':<22}{'plan s':>8}{'sim s':>9}{'mech J':>10}"
-            f"{'E(P0) Wh':>10}{'peak W':>9}  result"
+            f"{'step':<16}{'service':<22}{'plan s':>8}{'sim s':>9}{'signed J':>10}"
+            f"{'E(P0) Wh':>10}{'peak+P0 W':>10}  result"
         )
         lines = [header, "-" * len(header)]
         for s in self.steps:
             lines.append(
                 f"{s.step:<16}{s.service:<22}{s.planning_time_s:>8.3f}{s.sim_time_s:>9.1f}"
-                f"{s.mechanical_energy_j:>10.1f}{s.energy_wh:>10.4f}{s.peak_power_w:>9.1f}  "
+                f"{s.mechanical_energy_j:>10.1f}{s.energy_wh:>10.4f}{s.peak_power_w:>10.1f}  "
                 f"{'ok' if s.success else 'FAILED: ' + s.message}"
             )
         lines.append("-" * len(header))
@@ -302,49 +303,21 @@ class PowerTrace:
 
 
 def write_report(report: MissionReport) -> None:
-    """Write ``report.json``, ``report.md`` and the power plot into the run directory."""
-    run_dir = report.run_dir
-    (run_dir / "report.json").write_text(json.dumps(report.to_json(), indent=2))
-    plot = power_plot(run_dir)
-    lines = [
-        f"# Mission report: {report.config.name}",
-        "",
-        f"Result: **{'success' if report.success else 'FAILED'}**"
-        + (f": {report.error}" if report.error else ""),
-        "",
-        f"Terrain `{report.config.terrain_spec}`, trench at "
-        f"({report.config.x:.3f}, {report.config.y:.3f}) m in base_link; ground found at "
-        + (f"z = {report.ground_z:.4f} m." if report.ground_z is not None else "(none)."),
-        "",
-        "```",
-        report.table(),
-        "```",
-        "",
-    ]
-    if plot:
-        lines += ["![power over time](power.png)", "", plot, ""]
-    for png in sorted((run_dir / "renders").glob("*.png")):
-        lines.append(f"![{png.stem}](renders/{png.name})")
-    lines += [
-        "",
-        "Files: `bags/` (ROS 1 bags: /power, /joint_states, /arm/operation, ...), "
-        "`trajectories/` (the planned CSV trajectories), `ros/` (node logs).",
-    ]
-    (run_dir / "report.md").write_text("\n".join(lines) + "\n")
+    """Write ``report.json``, ``report.md`` and the figures into the run directory, all made
+    from the run's bags after the run (:func:`ow_mission.report.write_run_report`).
 
+    The steps' energies and peaks become the bags' (the numbers the power plot labels), so the
+    table printed afterwards (:meth:`MissionReport.table`) agrees with ``report.md``.
+    """
+    from ow_mission.report import write_run_report
 
-def power_plot(run_dir: Path) -> str:
-    """Plot power over time from the bags with operations marked; '' or a note on failure."""
-    bags = sorted((run_dir / "bags").glob("*.bag"))
-    if not bags:
-        return "No bag was recorded."
-    try:
-        from ow_power.analysis import analyze, plot_power
-
-        plot_power(analyze(bags), run_dir / "power.png")
-    except Exception as exc:  # a plot must never cost the user the rest of the report
-        return f"The power plot could not be made: {exc}"
-    return ""
+    document = report.to_json()
+    document["config"]["terrain_spec"] = report.config.terrain_spec
+    written = write_run_report(report.run_dir, document, renders=report.config.renders)
+    for step, row in zip(report.steps, written["steps"], strict=True):
+        step.mechanical_energy_j = float(row["mechanical_energy_j"])
+        step.energy_wh = float(row["energy_wh"])
+        step.peak_power_w = float(row["peak_power_w"])
 
 
 def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str, Any]]:
@@ -367,8 +340,14 @@ def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str,
         "record": {
             "output_dir": str(run_dir / "bags"),
             "prefix": "mission",
-            # The terrain too: the trench the mission dug is part of its result.
-            "topics": [*shipped["record"]["topics"], "/sim/terrain", "/sim/scoop_tip_ground"],
+            # The terrain too: the trench the mission dug is part of its result; and the guarded
+            # move's detector samples for the report's Figure 11.
+            "topics": [
+                *shipped["record"]["topics"],
+                "/sim/terrain",
+                "/sim/scoop_tip_ground",
+                "/arm/ground_detector",
+            ],
         },
     }
     return stack_parameters(mission, config.node_params)
@@ -394,16 +373,16 @@ def render_step(
     target_xy: tuple[float, float],
 ) -> Path:
     """Render the arm at ``joints`` on ``terrain`` into ``run_dir/renders/<n>_<label>.png``,
-    looking at ``target_xy`` (m, base_link); returns the file."""
+    framed on the arm and ``target_xy`` (m, base_link); returns the file."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ow_mission.render import Camera, render_scene
+    from ow_mission.render import render_scene
 
     index = len(list((run_dir / "renders").glob("*.png")))
-    image = render_scene(joints, terrain, Camera(target=(target_xy[0], target_xy[1], 0.1)))
+    image = render_scene(joints, terrain, around=[(target_xy[0], target_xy[1], 0.0)])
     path = run_dir / "renders" / f"{index:02d}_{label}.png"
     plt.imsave(path, image)
     return path

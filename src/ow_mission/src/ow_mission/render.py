@@ -1,12 +1,15 @@
 """Headless pictures of the lander arm on its terrain (pybullet's TinyRenderer, no GPU, no ROS).
 
-:func:`render_scene` draws the URDF's visual shapes (primitives coloured per part) with the terrain
-height map as a heightfield.
+:class:`SceneRenderer` keeps one pybullet client with the URDF's visual shapes (primitives coloured
+per part) and the terrain height map as a heightfield, so a sequence of frames (a replay) loads the
+robot once and rebuilds the terrain only when it changes; :func:`render_scene` renders one picture.
+:func:`fit_camera` places the camera from the extents of what must be seen, so nothing is cut off.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import math
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +20,14 @@ import pybullet as pb
 from ow_lander.description import URDF_PATH
 from ow_lander.terrain import HeightMap
 
+#: Colour of the terrain (RGBA): a plain pale ice; the heightfield's own checker texture is
+#: removed (TinyRenderer drew it as a hard-edged blue half-plane across the terrain).
+TERRAIN_RGBA = (0.80, 0.82, 0.86, 1.0)
+FloatArray = npt.NDArray[np.float64]
+
+#: deg, vertical field of view of every camera.
+FOV_DEG = 50.0
+
 
 @dataclass(frozen=True)
 class Camera:
@@ -25,7 +36,7 @@ class Camera:
     Attributes:
         target: (3,) m, point looked at.
         distance: m, from the target.
-        yaw: deg, about base_link z (0 looks along +y... as pybullet's debug camera).
+        yaw: deg, about base_link z (pybullet's debug-camera convention).
         pitch: deg, negative looks down.
         width: px.
         height: px.
@@ -35,8 +46,162 @@ class Camera:
     distance: float = 3.2
     yaw: float = 35.0
     pitch: float = -25.0
-    width: int = 640
-    height: int = 480
+    width: int = 1024
+    height: int = 768
+
+
+def camera_axes(yaw: float, pitch: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(right, up, forward) unit vectors in base_link of a camera at ``yaw``/``pitch`` (deg),
+    as pybullet's ``computeViewMatrixFromYawPitchRoll`` (z up) orients it."""
+    view = np.reshape(
+        pb.computeViewMatrixFromYawPitchRoll((0.0, 0.0, 0.0), 1.0, yaw, pitch, 0.0, 2), (4, 4)
+    )
+    # Column-major OpenGL: the rotation's rows are the camera axes; the camera looks along -z.
+    rotation = view[:3, :3].T
+    return rotation[0], rotation[1], -rotation[2]
+
+
+def fit_camera(
+    points: npt.ArrayLike,
+    yaw: float = 35.0,
+    pitch: float = -25.0,
+    width: int = 1024,
+    height: int = 768,
+    margin: float = 0.04,
+) -> Camera:
+    """A camera at ``yaw``/``pitch`` (deg) that sees every one of ``points`` ((N, 3) m, base_link)
+    and no more than it must: the points fill the image but for ``margin`` (a fraction of the
+    image size) on each side.
+
+    The perspective projection is solved point by point: the target is moved until the points'
+    extent is centred, and the distance is the smallest that keeps each inside the frame.
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    right, up, forward = camera_axes(yaw, pitch)
+    tan_v = math.tan(math.radians(FOV_DEG) / 2) * (1.0 - 2.0 * margin)
+    tan_h = math.tan(math.radians(FOV_DEG) / 2) * width / height * (1.0 - 2.0 * margin)
+    target = (pts.min(axis=0) + pts.max(axis=0)) / 2
+
+    def solve(target: FloatArray) -> tuple[float, FloatArray, FloatArray]:
+        rel = pts - target
+        x, y, depth = rel @ right, rel @ up, rel @ forward
+        # A point at (x, y) is inside when |x| <= (distance + depth) tan_h, and so for y.
+        distance = float(max(np.max(np.abs(x) / tan_h - depth), np.max(np.abs(y) / tan_v - depth)))
+        z = distance + depth
+        return distance, x / (z * tan_h), y / (z * tan_v)
+
+    for _ in range(8):
+        # Move the target to the middle of the points' projected extent, then solve again.
+        distance, u, v = solve(target)
+        shift_u = (u.max() + u.min()) / 2 * distance * tan_h
+        shift_v = (v.max() + v.min()) / 2 * distance * tan_v
+        target = target + right * shift_u + up * shift_v
+    distance, _, _ = solve(target)
+    return Camera(
+        (float(target[0]), float(target[1]), float(target[2])),
+        max(distance, 0.1),
+        yaw,
+        pitch,
+        width,
+        height,
+    )
+
+
+class SceneRenderer:
+    """The lander (and a terrain) in a pybullet DIRECT client, rendered on demand.
+
+    Args:
+        urdf_path: robot description.
+
+    Use as a context manager, or call :meth:`close`.
+    """
+
+    def __init__(self, urdf_path: Path = URDF_PATH) -> None:
+        self._client = pb.connect(pb.DIRECT)
+        self._body = pb.loadURDF(str(urdf_path), useFixedBase=True, physicsClientId=self._client)
+        self._joints: dict[str, int] = {}
+        for i in range(pb.getNumJoints(self._body, physicsClientId=self._client)):
+            name = pb.getJointInfo(self._body, i, physicsClientId=self._client)[1].decode()
+            self._joints[name] = i
+        self._ground: int | None = None
+        self._terrain: HeightMap | None = None
+
+    def __enter__(self) -> SceneRenderer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Disconnect the pybullet client."""
+        if self._client >= 0:
+            pb.disconnect(self._client)
+            self._client = -1
+
+    def set_joints(self, joint_positions: Mapping[str, float]) -> None:
+        """Pose the robot: rad by joint name; joints not named keep their position."""
+        for name, value in joint_positions.items():
+            index = self._joints.get(name)
+            if index is not None:
+                pb.resetJointState(self._body, index, float(value), physicsClientId=self._client)
+
+    def set_terrain(self, terrain: HeightMap | None) -> None:
+        """Show ``terrain`` (None: no terrain); the heightfield is rebuilt only when it changed."""
+        if terrain is self._terrain:
+            return
+        if self._ground is not None:
+            pb.removeBody(self._ground, physicsClientId=self._client)
+            self._ground = None
+        self._terrain = terrain
+        if terrain is not None:
+            self._ground = _add_terrain(terrain, self._client)
+
+    def robot_points(self) -> npt.NDArray[np.float64]:
+        """(8 * links, 3) m: the corners of every link's bounding box in the current pose."""
+        corners = []
+        for link in range(-1, len(self._joints)):
+            low, high = pb.getAABB(self._body, link, physicsClientId=self._client)
+            for cx in (low[0], high[0]):
+                for cy in (low[1], high[1]):
+                    for cz in (low[2], high[2]):
+                        corners.append((cx, cy, cz))
+        return np.asarray(corners, dtype=np.float64)
+
+    def render(self, camera: Camera) -> npt.NDArray[np.uint8]:
+        """(height, width, 3) RGB image from ``camera``."""
+        view = pb.computeViewMatrixFromYawPitchRoll(
+            camera.target,
+            camera.distance,
+            camera.yaw,
+            camera.pitch,
+            0.0,
+            2,
+            physicsClientId=self._client,
+        )
+        far = max(30.0, 3.0 * camera.distance)
+        projection = pb.computeProjectionMatrixFOV(
+            FOV_DEG, camera.width / camera.height, 0.05, far, physicsClientId=self._client
+        )
+        _, _, rgba, _, _ = pb.getCameraImage(
+            camera.width,
+            camera.height,
+            view,
+            projection,
+            renderer=pb.ER_TINY_RENDERER,
+            lightDirection=[0.4, -0.6, 1.0],
+            shadow=1,
+            physicsClientId=self._client,
+        )
+        image = np.reshape(np.asarray(rgba, dtype=np.uint8), (camera.height, camera.width, 4))
+        return np.ascontiguousarray(image[:, :, :3])
+
+
+def scene_points(
+    robot: npt.NDArray[np.float64], around: Iterable[tuple[float, float, float]] = ()
+) -> npt.NDArray[np.float64]:
+    """The points a camera must see: the robot's (N, 3) m and the ``around`` points (m)."""
+    extra = np.asarray(list(around), dtype=np.float64).reshape(-1, 3)
+    return np.vstack([robot, extra])
 
 
 def render_scene(
@@ -44,51 +209,61 @@ def render_scene(
     terrain: HeightMap | None = None,
     camera: Camera | None = None,
     urdf_path: Path = URDF_PATH,
+    around: Iterable[tuple[float, float, float]] = (),
 ) -> npt.NDArray[np.uint8]:
     """Render the lander at ``joint_positions`` on ``terrain``.
 
     Args:
         joint_positions: rad, by joint name; joints not named stay at 0.
         terrain: height map drawn under the lander, or None.
-        camera: where to look from (default: front-left of the arm's workspace).
+        camera: where to look from (default: :func:`fit_camera` on the whole robot and the
+            ``around`` points, 1024x768).
         urdf_path: robot description.
+        around: (x, y, z) m points of base_link the default camera must also see.
 
     Returns:
         (height, width, 3) RGB image.
     """
-    cam = camera or Camera()
-    client = pb.connect(pb.DIRECT)
-    try:
-        body = pb.loadURDF(str(urdf_path), useFixedBase=True, physicsClientId=client)
-        for i in range(pb.getNumJoints(body, physicsClientId=client)):
-            name = pb.getJointInfo(body, i, physicsClientId=client)[1].decode()
-            if name in joint_positions:
-                pb.resetJointState(body, i, joint_positions[name], physicsClientId=client)
-        if terrain is not None:
-            _add_terrain(terrain, client)
-        view = pb.computeViewMatrixFromYawPitchRoll(
-            cam.target, cam.distance, cam.yaw, cam.pitch, 0.0, 2, physicsClientId=client
-        )
-        projection = pb.computeProjectionMatrixFOV(
-            50.0, cam.width / cam.height, 0.05, 30.0, physicsClientId=client
-        )
-        _, _, rgba, _, _ = pb.getCameraImage(
-            cam.width,
-            cam.height,
-            view,
-            projection,
-            renderer=pb.ER_TINY_RENDERER,
-            lightDirection=[0.4, -0.6, 1.0],
-            shadow=1,
-            physicsClientId=client,
-        )
-    finally:
-        pb.disconnect(client)
-    image = np.reshape(np.asarray(rgba, dtype=np.uint8), (cam.height, cam.width, 4))
-    return np.ascontiguousarray(image[:, :, :3])
+    with SceneRenderer(urdf_path) as scene:
+        scene.set_joints(joint_positions)
+        cam = camera or fit_camera(scene_points(scene.robot_points(), around))
+        scene.set_terrain(None if terrain is None else visible_terrain(terrain, cam))
+        return scene.render(cam)
 
 
-def _add_terrain(terrain: HeightMap, client: int) -> None:
+def crop_terrain(terrain: HeightMap, points: npt.ArrayLike, margin: float = 0.2) -> HeightMap:
+    """The part of ``terrain`` under the bounding box of ``points`` ((N, 3) m) grown by
+    ``margin`` m (TinyRenderer's cost grows with the triangles it draws)."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    xs, ys = terrain.cell_centres()
+    cols = np.flatnonzero((xs >= pts[:, 0].min() - margin) & (xs <= pts[:, 0].max() + margin))
+    rows = np.flatnonzero((ys >= pts[:, 1].min() - margin) & (ys <= pts[:, 1].max() + margin))
+    if len(cols) < 2 or len(rows) < 2:
+        return terrain
+    heights = terrain.heights[rows[0] : rows[-1] + 1, cols[0] : cols[-1] + 1]
+    return HeightMap(heights, terrain.resolution, float(xs[cols[0]]), float(ys[rows[0]]))
+
+
+def visible_terrain(terrain: HeightMap, camera: Camera, reach: float = 3.0) -> HeightMap:
+    """The part of ``terrain`` that ``camera`` sees: under the rays through the image's corners
+    and edge midpoints down to the terrain's lowest point, each at most ``reach`` camera
+    distances long (rays above the horizon would never meet it)."""
+    right, up, forward = camera_axes(camera.yaw, camera.pitch)
+    eye = np.asarray(camera.target) - forward * camera.distance
+    tan_v = math.tan(math.radians(FOV_DEG) / 2)
+    tan_h = tan_v * camera.width / camera.height
+    low = float(terrain.heights.min())
+    ends = []
+    for u in (-1.0, 0.0, 1.0):
+        for v in (-1.0, 0.0, 1.0):
+            ray = forward + right * u * tan_h + up * v * tan_v
+            longest = reach * camera.distance / float(np.linalg.norm(ray))
+            hit = (low - eye[2]) / ray[2] if ray[2] < 0 else longest
+            ends.append(eye + ray * min(hit, longest))
+    return crop_terrain(terrain, np.vstack([ends, [camera.target]]))
+
+
+def _add_terrain(terrain: HeightMap, client: int) -> int:
     rows, cols = terrain.shape
     heights = terrain.heights
     low, high = float(heights.min()), float(heights.max())
@@ -108,4 +283,7 @@ def _add_terrain(terrain: HeightMap, client: int) -> None:
         (low + high) / 2,
     )
     ground = pb.createMultiBody(0, shape, basePosition=centre, physicsClientId=client)
-    pb.changeVisualShape(ground, -1, rgbaColor=[0.82, 0.86, 0.92, 1.0], physicsClientId=client)
+    pb.changeVisualShape(
+        ground, -1, rgbaColor=list(TERRAIN_RGBA), textureUniqueId=-1, physicsClientId=client
+    )
+    return int(ground)

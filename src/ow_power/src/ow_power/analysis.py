@@ -297,7 +297,9 @@ def window_figures(power: pd.DataFrame, start_s: float, end_s: float) -> dict[st
 
     Returns:
         ``duration_s``, ``mechanical_energy_j``, ``mechanical_energy_abs_j``, ``energy_wh``,
-        ``electrical_energy_wh``, ``peak_power_w``, ``mean_power_w`` (NaN without samples).
+        ``electrical_energy_wh``, ``peak_power_w`` (of the absolute-value mechanical power,
+        without P0), ``peak_total_power_w`` (of the total power, with P0), ``mean_power_w``
+        (NaN without samples).
     """
     t = power["t_s"].to_numpy()
     dt = power["dt_s"].to_numpy()
@@ -310,15 +312,18 @@ def window_figures(power: pd.DataFrame, start_s: float, end_s: float) -> dict[st
     # Peak over the samples whose held interval overlaps the window (a lone sample counts too).
     inside = (overlap > 0.0) | ((dt == 0.0) & (t >= start_s) & (t <= end_s))
     abs_energy = energy("mechanical_power_abs_w")
+
+    def peak(column: str) -> float:
+        return float(power[column].to_numpy()[inside].max()) if inside.any() else math.nan
+
     return {
         "duration_s": duration,
         "mechanical_energy_j": energy("mechanical_power_w"),
         "mechanical_energy_abs_j": abs_energy,
         "energy_wh": energy("total_power_w") / _J_PER_WH,
         "electrical_energy_wh": energy("electrical_power_w") / _J_PER_WH,
-        "peak_power_w": float(power["mechanical_power_abs_w"].to_numpy()[inside].max())
-        if inside.any()
-        else math.nan,
+        "peak_power_w": peak("mechanical_power_abs_w"),
+        "peak_total_power_w": peak("total_power_w"),
         "mean_power_w": abs_energy / duration if duration > 0 else math.nan,
     }
 
@@ -450,16 +455,58 @@ def write_summary(result: Analysis, csv_path: Path | str, json_path: Path | str)
     Path(json_path).write_text(json.dumps(document, indent=2) + "\n")
 
 
-def plot_power(result: Analysis, png_path: Path | str, title: str | None = None) -> None:
-    """Power over simulation time with the operations shaded and ground contacts marked.
+@dataclass(frozen=True)
+class PlotLabel:
+    """A window the power plot shades and labels, with the figures its label shows.
+
+    Attributes:
+        name: step or operation name.
+        start_s: s, simulation time of its start.
+        end_s: s, of its end.
+        mechanical_energy_j: J, signed mechanical energy (eq. 4 without P0).
+        mechanical_energy_abs_j: J, absolute-value mechanical energy, sum |tau*omega| dt.
+        peak_power_w: W, peak of sum |tau*omega| (without P0).
+        peak_total_power_w: W, peak of the total power (with P0).
+        text: the label as drawn.
+    """
+
+    name: str
+    start_s: float
+    end_s: float
+    mechanical_energy_j: float
+    mechanical_energy_abs_j: float
+    peak_power_w: float
+    peak_total_power_w: float
+    text: str
+
+
+def energy_label(name: str, signed_j: float, abs_j: float) -> str:
+    """The text the power plot writes over a window (energies in J, one decimal)."""
+    return f"{name}\n{signed_j:.1f} J signed\n{abs_j:.1f} J |.|"
+
+
+def plot_power(
+    result: Analysis,
+    png_path: Path | str,
+    title: str | None = None,
+    windows: Sequence[tuple[str, float, float]] | None = None,
+) -> list[PlotLabel]:
+    """Power over simulation time with windows shaded and labelled, ground contacts marked.
 
     The plot of the paper's Figure 18, for a whole run: mechanical power (eq. 2 without P0) and
-    the absolute-value variant, in W, against s since the first sample.
+    the absolute-value variant, in W, against s since the first sample. Each window is labelled
+    with its name and both its signed and its absolute-value mechanical energy; labels that
+    would overlap are stacked in rows.
 
     Args:
         result: output of :func:`analyze`.
         png_path: PNG file to write.
-        title: plot title (default: the first bag's name).
+        title: plot title (default: how many bags, the first and last names, P0).
+        windows: (name, start s, end s) to shade, e.g. a mission's steps (default: the
+            operations of ``/arm/operation``).
+
+    Returns:
+        The labelled windows with the figures their labels show (see :func:`window_figures`).
     """
     import matplotlib
 
@@ -469,16 +516,38 @@ def plot_power(result: Analysis, png_path: Path | str, title: str | None = None)
         warnings.simplefilter("ignore", UserWarning)
         import matplotlib.pyplot as plt
 
+    if windows is None:
+        windows = [
+            (str(op.name), float(op.start_s), float(op.end_s))
+            for op in result.summary.itertuples(index=False)
+        ]
+    labels = []
+    for name, start, end in windows:
+        figures = window_figures(result.power, start, end)
+        labels.append(
+            PlotLabel(
+                name,
+                start,
+                end,
+                figures["mechanical_energy_j"],
+                figures["mechanical_energy_abs_j"],
+                figures["peak_power_w"],
+                figures["peak_total_power_w"],
+                energy_label(
+                    name, figures["mechanical_energy_j"], figures["mechanical_energy_abs_j"]
+                ),
+            )
+        )
     t0 = float(result.power["t_s"].iloc[0])
     t = result.power["t_s"].to_numpy() - t0
-    fig, ax = plt.subplots(figsize=(11, 4.5), dpi=110)
+    fig, ax = plt.subplots(figsize=(12, 5.5), dpi=110)
     ax.plot(
         t,
         result.power["mechanical_power_abs_w"],
         lw=1.0,
         color="tab:red",
         drawstyle="steps-pre",
-        label="sum |tau*omega|",
+        label="sum |tau*omega| (absolute-value mechanical power)",
     )
     ax.plot(
         t,
@@ -486,38 +555,76 @@ def plot_power(result: Analysis, png_path: Path | str, title: str | None = None)
         lw=0.8,
         color="tab:blue",
         drawstyle="steps-pre",
-        label="sum tau*omega (eq. 2 without P0)",
+        label="sum tau*omega (signed, eq. 2 without P0)",
     )
     ax.axhline(0.0, color="0.5", lw=0.5)
-    low, high = ax.get_ylim()
-    ax.set_ylim(low, high + 0.15 * (high - low))  # room for the operation labels
-    colors = [plt.get_cmap("tab10")(i) for i in range(10)]
-    for i, op in enumerate(result.summary.itertuples(index=False)):
-        color = colors[i % len(colors)]
-        ax.axvspan(op.start_s - t0, op.end_s - t0, color=color, alpha=0.12, lw=0)
-        ax.text(
-            (op.start_s + op.end_s) / 2 - t0,
-            0.98,
-            f"{op.name}\n{op.mechanical_energy_abs_j:.0f} J",
-            transform=ax.get_xaxis_transform(),
-            ha="center",
-            va="top",
-            fontsize=7,
-            color=color,
-        )
     for k, contact in enumerate(result.contacts_s):
         ax.axvline(
             contact - t0, color="k", ls="--", lw=0.8, label="ground contact" if k == 0 else None
         )
+    colors = [plt.get_cmap("tab10")(i) for i in range(10)]
+    texts = []
+    for i, label in enumerate(labels):
+        color = colors[i % len(colors)]
+        ax.axvspan(label.start_s - t0, label.end_s - t0, color=color, alpha=0.12, lw=0)
+        texts.append(
+            ax.text(
+                (label.start_s + label.end_s) / 2 - t0,
+                0.99,
+                label.text,
+                transform=ax.get_xaxis_transform(),
+                ha="center",
+                va="top",
+                fontsize=7,
+                color=color,
+            )
+        )
     ax.set_xlabel("simulation time since the first sample [s]")
     ax.set_ylabel("mechanical power [W]")
+    names = (
+        result.bags[0].name
+        if len(result.bags) == 1
+        else f"{len(result.bags)} bags, {result.bags[0].name} ... {result.bags[-1].name}"
+    )
     ax.set_title(
-        title
-        or f"Arm power, {result.bags[0].name} (P0 = {result.auxiliary_power_w:.1f} W not shown)",
+        title or f"Arm power, {names} (P0 = {result.auxiliary_power_w:.1f} W not shown)",
         fontsize=10,
     )
     ax.grid(alpha=0.3)
-    ax.legend(loc="lower right", fontsize=8)
+    ax.legend(loc="lower right", fontsize=8, framealpha=0.9)
+    stack_labels(fig, ax, texts)
     fig.tight_layout()
     fig.savefig(png_path)
     plt.close(fig)
+    return labels
+
+
+def stack_labels(fig: Any, ax: Any, texts: Sequence[Any]) -> int:
+    """Move labels (top-aligned at the top of ``ax``) into rows so that none overlaps another,
+    and raise the y limit so that the rows sit above the data; returns the number of rows."""
+    fig.tight_layout()
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    axes_height = ax.get_window_extent(renderer).height
+    rows: list[list[tuple[float, float]]] = []
+    row_height = 0.0
+    for text in texts:
+        box = text.get_window_extent(renderer)
+        row_height = max(row_height, box.height / axes_height + 0.01)
+        row = next(
+            (
+                i
+                for i, spans in enumerate(rows)
+                if all(box.x1 + 4 < x0 or box.x0 - 4 > x1 for x0, x1 in spans)
+            ),
+            len(rows),
+        )
+        if row == len(rows):
+            rows.append([])
+        rows[row].append((box.x0, box.x1))
+        text.set_y(0.99 - row * row_height)
+    if texts:
+        low, high = ax.get_ylim()
+        used = min(0.99 - len(rows) * row_height, 0.9)
+        ax.set_ylim(low, low + (high - low) / max(used, 0.3))
+    return len(rows)

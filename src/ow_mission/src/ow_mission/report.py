@@ -1,0 +1,427 @@
+"""A mission run's report, made from its bags after the run (no ROS).
+
+:func:`write_run_report` takes the run's ``report.json`` document (the steps as the mission ran
+them) and its ``bags/``, and writes: ``power.png`` (power with the steps' signed and
+absolute-value mechanical energies), ``trench_profile.png`` (terrain before and after along and
+across the trench, with the requested depths), ``guarded_move.png`` (the ground detector, the
+paper's Figure 11), stills in ``renders/`` and ``replay.gif`` (the whole mission, animated), then
+``report.md`` linking each figure that exists, and ``report.json`` with the energies from the bags
+and the figures' file names. ``python -m ow_mission.report RUN_DIR`` rebuilds them for a run.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import sys
+import time
+import traceback
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ow_mission.node_config import stack_parameters
+from ow_mission.replay import Recording, make_replay, read_recording
+
+#: Steps after which a still is rendered, and what it shows.
+STILLS: dict[str, str] = {
+    "guarded_move": "the scoop resting on the ground the guarded move found",
+    "grind": "the grinder lifted out of the freshly ground trench",
+    "dig_sample": "the scoop lifted out of the trench holding the sample",
+    "deliver_sample": "the scoop tipped over the sample dock after the delivery",
+}
+
+
+@dataclass
+class Figures:
+    """What the report links, by role: file names relative to the run directory, and notes for
+    figures that could not be made."""
+
+    files: dict[str, str] = field(default_factory=dict)
+    captions: dict[str, str] = field(default_factory=dict)
+    notes: dict[str, str] = field(default_factory=dict)
+
+
+#: Makes one figure from the run directory, the document, the recording and the figures so far;
+#: returns a note when it cannot.
+FigureMaker = Callable[[Path, dict[str, Any], Recording, Figures], "str | None"]
+
+
+def step_windows(document: Mapping[str, Any]) -> list[tuple[str, float, float]]:
+    """(step name, start s, end s) of every step of ``report.json``."""
+    return [
+        (str(s["step"]), float(s["sim_start_s"]), float(s["sim_end_s"])) for s in document["steps"]
+    ]
+
+
+def trench_points(config: Mapping[str, Any], ground_z: float) -> list[tuple[float, float, float]]:
+    """m, base_link: the trench's corners at the ground and below the requested depth, for the
+    cameras to frame."""
+    from ow_mission.plots import TrenchGeometry
+
+    g = TrenchGeometry.from_config(config)
+    bottom = ground_z - float(config["trench_depth"]) - float(config["bottom_grind_depth"])
+    points = []
+    for along in (-0.1, g.length + 0.1):
+        for across in (-0.15, 0.15):
+            xy = g.start + g.direction * along + g.normal * across
+            for z in (bottom, ground_z + 0.05):
+                points.append((float(xy[0]), float(xy[1]), float(z)))
+    return points
+
+
+def _attempt(figures: Figures, role: str, make: Callable[[], str | None]) -> None:
+    """Run ``make`` (it returns a note, or None when the figure was written); a figure that
+    fails must never cost the user the rest of the report."""
+    try:
+        note = make()
+    except Exception as exc:
+        note = f"the {role} figure could not be made: {type(exc).__name__}: {exc}"
+        traceback.print_exc(file=sys.stderr)
+    if note:
+        figures.notes[role] = note
+
+
+def energies_from_bags(
+    run_dir: Path, document: dict[str, Any], bags: Sequence[Path], figures: Figures
+) -> None:
+    """``power.png``, and each step's energies and peaks from the bags written into
+    ``document['steps']`` (the same numbers the plot labels)."""
+    from ow_power.analysis import analyze, plot_power
+
+    analysis = analyze(bags)
+    labels = plot_power(analysis, run_dir / "power.png", windows=step_windows(document))
+    for step, label in zip(document["steps"], labels, strict=True):
+        window = analysis_window(analysis, label.start_s, label.end_s)
+        step.update(
+            mechanical_energy_j=label.mechanical_energy_j,
+            mechanical_energy_abs_j=label.mechanical_energy_abs_j,
+            energy_wh=window["energy_wh"],
+            peak_mechanical_power_w=label.peak_power_w,
+            peak_power_w=label.peak_total_power_w,
+            power_plot_label=label.text,
+        )
+    document["energy_source"] = f"bags ({analysis.source}), P0 = {analysis.auxiliary_power_w} W"
+    document["auxiliary_power_w"] = analysis.auxiliary_power_w
+    figures.files["power"] = "power.png"
+    figures.captions["power"] = (
+        f"Arm mechanical power over the mission from {len(bags)} bag(s): signed sum tau*omega "
+        "(blue) and sum |tau*omega| (red), P0 left out; each step shaded and labelled with its "
+        "signed and absolute-value mechanical energy (the table's numbers); dashed: ground contact."
+    )
+
+
+def analysis_window(analysis: Any, start_s: float, end_s: float) -> dict[str, float]:
+    """:func:`ow_power.analysis.window_figures` of ``analysis`` over [start_s, end_s]."""
+    from ow_power.analysis import window_figures
+
+    return window_figures(analysis.power, start_s, end_s)
+
+
+def trench_figure(
+    run_dir: Path, document: dict[str, Any], recording: Recording, figures: Figures
+) -> str | None:
+    """``trench_profile.png`` and ``document['trench']``; a note when it cannot be made."""
+    from ow_mission.plots import plot_trench, trench_profile
+
+    if not recording.terrains:
+        return "no /sim/terrain in the bags: no trench profile."
+    before, after = recording.terrains[0][1], recording.terrains[-1][1]
+    profile = trench_profile(before, after, document["config"], document.get("ground_z"))
+    plot_trench(profile, run_dir / "trench_profile.png")
+    document["trench"] = {
+        "worked": profile.worked,
+        "floor_z": profile.floor_z,
+        "deepest_z": profile.deepest_z,
+        "ground_z": profile.ground_z,
+        "depth_reached_m": profile.depth_reached_m,
+        "requested_floor_z": profile.requested_floor_z,
+        "requested_bottom_z": profile.requested_bottom_z,
+        "verdict": profile.verdict(),
+    }
+    figures.files["trench_profile"] = "trench_profile.png"
+    figures.captions["trench_profile"] = (
+        "The trench from the bags: top view of how much the terrain was lowered (last "
+        "/sim/terrain minus the first), and the terrain before and after along the trench line "
+        "and across its middle, with the requested floor (ground found - trench_depth) and the "
+        "bottom grind depth below it."
+    )
+    return None
+
+
+def guarded_move_figure(
+    run_dir: Path, document: dict[str, Any], recording: Recording, figures: Figures
+) -> str | None:
+    """``guarded_move.png`` (the paper's Figure 11); a note when it cannot be made."""
+    from ow_mission.plots import detector_trace, plot_guarded_move
+
+    step = next((s for s in document["steps"] if s["step"] == "guarded_move"), None)
+    if step is None:
+        return "the mission stopped before the guarded move: no detector figure."
+    execution = stack_parameters({}, document["config"].get("node_params", {}))["arm_services"][
+        "execution"
+    ]
+    trace = detector_trace(
+        recording,
+        float(step["sim_start_s"]),
+        float(step["sim_end_s"]),
+        float(execution["ground_relative_tolerance"]),
+    )
+    if trace is None:
+        return (
+            "no /arm/ground_detector in the bags and no ground contact to replay the detector "
+            "against: no detector figure."
+        )
+    plot_guarded_move(trace, run_dir / "guarded_move.png")
+    source = (
+        "recorded on /arm/ground_detector"
+        if trace.source == "recorded"
+        else "replayed offline (no /arm/ground_detector in the bags): the paper's detector "
+        "(ow_lander.ground_detection.GroundDetector) on the scoop tip's z velocity from forward "
+        "kinematics of /joint_states at the /tf rate"
+    )
+    detected = "none" if trace.contact_s is None else f"t = {trace.contact_s:.2f} s"
+    result = "none" if trace.result_s is None else f"t = {trace.result_s:.2f} s"
+    document["guarded_move_detector"] = {
+        "source": trace.source,
+        "detector": trace.detector,
+        "contact_s": trace.contact_s,
+        "result_s": trace.result_s,
+    }
+    figures.files["guarded_move"] = "guarded_move.png"
+    figures.captions["guarded_move"] = (
+        f"Guarded move ground detection (the paper's Figure 11), {source}: signal, moving "
+        f"average, threshold; detected at {detected} (the arm services' contact on "
+        f"/guarded_move_result: {result})."
+    )
+    return None
+
+
+def still_figures(
+    run_dir: Path, document: dict[str, Any], recording: Recording, figures: Figures
+) -> str | None:
+    """Stills (1024x768, framed on the whole arm and the trench) at the end of :data:`STILLS`'
+    steps, from the bags' joint states and terrain."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ow_mission.render import render_scene
+
+    config = document["config"]
+    ground = document.get("ground_z") or float(config["expected_ground"])
+    around = trench_points(config, ground)
+    renders = run_dir / "renders"
+    renders.mkdir(exist_ok=True)
+    index = 0
+    for step in document["steps"]:
+        if step["step"] not in STILLS:
+            continue
+        t = float(step["sim_end_s"])
+        path = renders / f"{index:02d}_{step['step']}.png"
+        image = render_scene(recording.joints_at(t), recording.terrain_at(t), around=around)
+        plt.imsave(path, image)
+        role = f"still_{index:02d}"
+        figures.files[role] = f"renders/{path.name}"
+        figures.captions[role] = (
+            f"After {step['step']} (t = {t:.1f} s sim): {STILLS[step['step']]}"
+            f"{'' if step['success'] else ' (the step FAILED)'}."
+        )
+        index += 1
+    return None
+
+
+def replay_figure(
+    run_dir: Path, document: dict[str, Any], recording: Recording, figures: Figures
+) -> str | None:
+    """``replay.gif``: the whole mission, from the bags."""
+    config = document["config"]
+    ground = document.get("ground_z") or float(config["expected_ground"])
+    result = make_replay(
+        recording,
+        step_windows(document),
+        run_dir / "replay.gif",
+        around=trench_points(config, ground),
+        title=str(config.get("name", "mission")),
+    )
+    document["replay"] = {
+        "file": "replay.gif",
+        "frames": result.frames,
+        "fps": result.fps,
+        "width": result.width,
+        "height": result.height,
+        "seconds_to_make": result.seconds,
+        "sim_span_s": result.sim_span_s,
+    }
+    figures.files["replay"] = "replay.gif"
+    figures.captions["replay"] = (
+        f"The whole mission replayed from /joint_states and /sim/terrain: {result.frames} frames "
+        f"at {result.fps:g} frames/s over {result.sim_span_s:.0f} s of simulated time, "
+        f"{result.width}x{result.height} px (made in {result.seconds:.1f} s)."
+    )
+    return None
+
+
+def write_run_report(
+    run_dir: Path, document: dict[str, Any], renders: bool = True
+) -> dict[str, Any]:
+    """Make the figures from ``run_dir/bags``, then write ``report.json`` and ``report.md``.
+
+    Args:
+        run_dir: the run directory.
+        document: the mission's ``report.json`` document (steps with their windows, config,
+            ground found); completed in place with the bags' energies, the trench verdict and
+            ``figures`` (role -> file name relative to ``run_dir``).
+        renders: also make the stills and the replay (they take most of the time).
+
+    Returns:
+        ``document`` as written.
+    """
+    run_dir = Path(run_dir)
+    figures = Figures()
+    wall0 = time.monotonic()
+    bags = sorted((run_dir / "bags").glob("*.bag"))
+    if not bags:
+        figures.notes["bags"] = "No bag was recorded: no figure could be made."
+    else:
+        _attempt(figures, "power", lambda: energies_from_bags(run_dir, document, bags, figures))
+        recording: Recording | None = None
+
+        def read() -> str | None:
+            nonlocal recording
+            recording = read_recording(bags)
+            return None
+
+        _attempt(figures, "bags", read)
+        if recording is not None:
+            rec = recording
+            makers: list[tuple[str, FigureMaker]] = [
+                ("trench_profile", trench_figure),
+                ("guarded_move", guarded_move_figure),
+            ]
+            if renders:
+                makers += [("stills", still_figures), ("replay", replay_figure)]
+            for role, maker in makers:
+                _attempt(figures, role, functools.partial(maker, run_dir, document, rec, figures))
+    document["figures"] = dict(figures.files)
+    document["figure_notes"] = dict(figures.notes)
+    document["report_seconds"] = time.monotonic() - wall0
+    (run_dir / "report.json").write_text(json.dumps(document, indent=2, default=_jsonable) + "\n")
+    (run_dir / "report.md").write_text(markdown(run_dir, document, figures))
+    return document
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, Path):
+        return str(value)
+    msg = f"{value!r} is not JSON serialisable"
+    raise TypeError(msg)
+
+
+def _number(value: Any, fmt: str) -> str:
+    return (
+        "-"
+        if value is None or (isinstance(value, float) and math.isnan(value))
+        else format(value, fmt)
+    )
+
+
+def step_table(document: Mapping[str, Any]) -> list[str]:
+    """The per-step table of ``report.md`` (Markdown), energies as the power plot labels them."""
+    lines = [
+        "| step | service | plan s | sim s | mech. energy signed J | mech. energy abs J "
+        "| energy with P0 Wh | peak mech. W (no P0) | peak total W (with P0) | result |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for s in document["steps"]:
+        result = "ok" if s["success"] else f"FAILED: {s['message']}"
+        lines.append(
+            f"| {s['step']} | `{s['service']}` | {s['planning_time_s']:.3f} "
+            f"| {s['sim_end_s'] - s['sim_start_s']:.1f} "
+            f"| {_number(s.get('mechanical_energy_j'), '.1f')} "
+            f"| {_number(s.get('mechanical_energy_abs_j'), '.1f')} "
+            f"| {_number(s.get('energy_wh'), '.4f')} "
+            f"| {_number(s.get('peak_mechanical_power_w'), '.1f')} "
+            f"| {_number(s.get('peak_power_w'), '.1f')} | {result} |"
+        )
+    return lines
+
+
+def markdown(run_dir: Path, document: Mapping[str, Any], figures: Figures) -> str:
+    """``report.md``: result, dig verdict, step table, every figure that exists with its
+    caption, and a note for each that could not be made."""
+    config = document["config"]
+    ground = document.get("ground_z")
+    lines = [
+        f"# Mission report: {config.get('name', 'mission')}",
+        "",
+        f"Result: **{'success' if document['success'] else 'FAILED'}**"
+        + (f": {document['error']}" if document.get("error") else ""),
+        "",
+        f"Terrain `{config.get('terrain_spec', config['terrain'])}`, trench at "
+        f"({config['x']:.3f}, {config['y']:.3f}) m in base_link; ground found at "
+        + (f"z = {ground:.4f} m." if ground is not None else "(none)."),
+        "",
+    ]
+    trench = document.get("trench")
+    if trench is not None:
+        lines += [f"**{trench['verdict']}**", ""]
+    lines += [
+        f"{document['wall_time_s']:.1f} s wall, {document['sim_time_s']:.1f} s simulated "
+        f"(real-time factor {document['real_time_factor']:.1f}x), peak memory "
+        f"{document['peak_memory_mb']:.0f} MB.",
+        "",
+        *step_table(document),
+        "",
+        "Energies and peaks are from the bags' `/power` over each step's window (the numbers the "
+        "power plot labels): *signed* is eq. 4 without P0 (sum tau*omega dt: negative where a "
+        "joint brakes a load), *abs* is sum |tau*omega| dt (motors do not regenerate); *energy "
+        "with P0* adds the auxiliary power. *Peak mech.* is the peak of sum |tau*omega|, "
+        "*peak total* that of the total power with P0.",
+        "",
+        "## Figures",
+        "",
+    ]
+    for role, rel in figures.files.items():
+        if not (run_dir / rel).is_file():
+            continue
+        lines += [f"![{role}]({rel})", "", f"*{figures.captions.get(role, rel)}*", ""]
+    for note in figures.notes.values():
+        lines += [f"> {note}", ""]
+    lines += [
+        "Files: `bags/` (ROS 1 bags: /power, /joint_states, /arm/operation, /sim/terrain, ...), "
+        "`trajectories/` (the planned CSV trajectories), `ros/` (node logs). Rebuild this report "
+        "from the bags with `python -m ow_mission.report <run dir>`.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def image_links(markdown_text: str) -> list[str]:
+    """The targets of the Markdown image links ``![alt](target)`` of ``markdown_text``."""
+    import re
+
+    return re.findall(r"!\[[^\]]*\]\(([^)]+)\)", markdown_text)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m ow_mission.report RUN_DIR [--no-renders]``: rebuild a run's report."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if not args or args[0] in ("-h", "--help"):
+        print("usage: python -m ow_mission.report RUN_DIR [--no-renders]")
+        return 0 if args else 2
+    run_dir = Path(args[0])
+    document = json.loads((run_dir / "report.json").read_text())
+    done = write_run_report(run_dir, document, renders="--no-renders" not in args)
+    print(json.dumps({"figures": done["figures"], "notes": done["figure_notes"]}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

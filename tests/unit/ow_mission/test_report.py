@@ -1,0 +1,362 @@
+"""The mission report made from a run's bags (ow_mission.report, plots, replay, render), on
+synthetic runs written as real split bags in tmp_path; no ROS master."""
+
+from __future__ import annotations
+
+import json
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+import pybullet as pb
+import pytest
+
+from ow_lander.description import URDF_PATH
+from ow_lander.terrain import HeightMap
+from ow_mission.plots import DEPTH_TOLERANCE_M, TrenchGeometry, detector_trace, trench_profile
+from ow_mission.render import Camera, camera_axes, fit_camera
+from ow_mission.replay import (
+    ReplayError,
+    frame_times,
+    make_replay,
+    read_recording,
+    step_at,
+)
+from ow_mission.report import image_links, write_run_report
+from ow_power.bagwriter import SplitBagWriter
+from ow_power.synthetic import BagMessages, Segment, write_run
+
+JOINTS = (
+    "j_shou_yaw",
+    "j_shou_pitch",
+    "j_prox_pitch",
+    "j_dist_pitch",
+    "j_hand_yaw",
+    "j_scoop_yaw",
+    "j_grinder",
+    "j_ant_pan",
+    "j_ant_tilt",
+)
+SEGMENTS = (
+    Segment("unstow", 3.0, {"j_shou_pitch": 0.1}, {"j_shou_pitch": 50.0}),  # 5 W: 15 J
+    Segment(  # +2 W and -6 W: signed -16 J, |.| 32 J
+        "guarded_move",
+        4.0,
+        {"j_shou_pitch": 0.1, "j_prox_pitch": -0.2},
+        {"j_shou_pitch": 20.0, "j_prox_pitch": 30.0},
+    ),
+    Segment("grind", 2.5, {"j_grinder": 0.1}, {"j_grinder": 1.0}),  # 0.1 W: 0.25 J
+)
+EXPECTED_J = {"unstow": (15.0, 15.0), "guarded_move": (-16.0, 32.0), "grind": (0.25, 0.25)}
+START_S = 10.0
+GROUND_Z = -0.155
+CONFIG = {
+    "name": "synthetic",
+    "terrain": "flat",
+    "seed": 0,
+    "x": 1.65,
+    "y": 0.0,
+    "expected_ground": GROUND_Z,
+    "trench_depth": 0.10,
+    "trench_length": 0.3,
+    "parallel": True,
+    "bottom_grind_depth": 0.05,
+    "node_params": {},
+}
+CONTACT_S = START_S + 3.0 + 3.0  # in the guarded move
+
+
+def _flat() -> HeightMap:
+    return HeightMap.flat(GROUND_Z, half_extent=1.0, resolution=0.02, centre_x=1.5)
+
+
+def _trenched(depth: float) -> HeightMap:
+    """The flat terrain with the trench of CONFIG carved ``depth`` m deep (12 cm wide)."""
+    flat = _flat()
+    g = TrenchGeometry.from_config(CONFIG)
+    xs, ys = flat.cell_centres()
+    X, Y = np.meshgrid(xs, ys)
+    rel = np.stack([X - g.start[0], Y - g.start[1]], axis=-1)
+    along, across = rel @ g.direction, rel @ g.normal
+    inside = (along >= -0.02) & (along <= g.length + 0.02) & (np.abs(across) <= 0.06)
+    heights = flat.heights.copy()
+    heights[inside] -= depth
+    return HeightMap(heights, flat.resolution, flat.origin_x, flat.origin_y)
+
+
+def _put_terrain(writer, messages, stamp_s, terrain):
+    ns = round(stamp_s * 1e9)
+    rows, cols = terrain.shape
+    ros1_type, md5, msgdef, data = messages.serialize(
+        "ow_msgs/msg/HeightMap",
+        header=messages.header(ns, "base_link"),
+        resolution=terrain.resolution,
+        origin_x=terrain.origin_x,
+        origin_y=terrain.origin_y,
+        rows=rows,
+        cols=cols,
+        heights=terrain.heights.astype(np.float32).ravel(),
+    )
+    writer.write("/sim/terrain", ros1_type, md5, msgdef, ns, data)
+
+
+def _put_detector(writer, messages, stamp_s, signal, average, contact):
+    ns = round(stamp_s * 1e9)
+    ros1_type, md5, msgdef, data = messages.serialize(
+        "ow_msgs/msg/GroundDetectorSignal",
+        header=messages.header(ns, "base_link"),
+        detector="velocity",
+        signal=signal,
+        moving_average=average,
+        threshold=-0.015,
+        contact=contact,
+    )
+    writer.write("/arm/ground_detector", ros1_type, md5, msgdef, ns, data)
+
+
+def _write_bags(directory: Path, trench_depth: float = 0.16, detector: bool = True) -> list[Path]:
+    """A synthetic run split into 4 s bags: terrain flat at the start, trenched at the end."""
+    writer = SplitBagWriter(directory, split_duration_s=4.0, start=datetime(2025, 1, 2, 3, 4, 5))
+    messages = BagMessages()
+    _put_terrain(writer, messages, START_S, _flat())
+    end = write_run(writer, SEGMENTS, JOINTS, start_s=START_S)
+    _put_terrain(writer, messages, end, _trenched(trench_depth))
+    if detector:
+        for k in range(20):
+            t = CONTACT_S - 1.0 + 0.05 * k
+            contact = k == 15
+            _put_detector(writer, messages, t, -0.024 if k < 15 else 0.0, -0.024, contact)
+    return writer.close()
+
+
+def _document() -> dict:
+    steps, t = [], START_S
+    for segment in SEGMENTS:
+        steps.append(
+            {
+                "step": segment.name,
+                "service": f"/arm/{segment.name}",
+                "request": {},
+                "success": True,
+                "message": "done",
+                "planning_time_s": 0.01,
+                "wall_time_s": 0.1,
+                "sim_start_s": t,
+                "sim_end_s": t + segment.duration_s,
+                "mechanical_energy_j": 0.0,
+                "energy_wh": 0.0,
+                "peak_power_w": 0.0,
+            }
+        )
+        t += segment.duration_s
+    return {
+        "success": True,
+        "error": "",
+        "failed_step": None,
+        "wall_time_s": 1.0,
+        "sim_time_s": t,
+        "real_time_factor": t,
+        "peak_memory_mb": 1.0,
+        "ground_z": GROUND_Z,
+        "config": dict(CONFIG),
+        "steps": steps,
+    }
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory) -> Path:
+    """A run directory with the synthetic bags and its report (renders off)."""
+    directory = tmp_path_factory.mktemp("run")
+    _write_bags(directory / "bags")
+    write_run_report(directory, _document(), renders=False)
+    return directory
+
+
+def _table(markdown: str) -> dict[str, list[str]]:
+    rows = [line for line in markdown.splitlines() if line.startswith("| ") and "`" in line]
+    return {
+        cells[0]: cells for cells in ([c.strip() for c in r.strip("|").split("|")] for r in rows)
+    }
+
+
+def test_every_image_the_report_links_exists_and_the_power_plot_is_linked(run_dir):
+    markdown = (run_dir / "report.md").read_text()
+    links = image_links(markdown)
+    assert "power.png" in links
+    assert "trench_profile.png" in links
+    assert "guarded_move.png" in links
+    for link in links:
+        assert (run_dir / link).is_file(), link
+    document = json.loads((run_dir / "report.json").read_text())
+    assert set(document["figures"].values()) == set(links)
+    assert len(list((run_dir / "bags").glob("*.bag"))) == 3  # the plot covers every split bag
+
+
+def test_report_energies_equal_the_plots_labels_and_the_closed_form(run_dir):
+    document = json.loads((run_dir / "report.json").read_text())
+    table = _table((run_dir / "report.md").read_text())
+    for step in document["steps"]:
+        signed, absolute = EXPECTED_J[step["step"]]
+        assert step["mechanical_energy_j"] == pytest.approx(signed, abs=1e-6)
+        assert step["mechanical_energy_abs_j"] == pytest.approx(absolute, abs=1e-6)
+        # The plot's label is made from the same numbers as the table's cells.
+        label = step["power_plot_label"].split("\n")
+        row = table[step["step"]]
+        assert label[0] == step["step"]
+        assert label[1] == f"{row[4]} J signed"
+        assert label[2] == f"{row[5]} J |.|"
+        # Peaks: of the total power with P0 (43 W), and of sum |tau*omega| without it.
+        segment = next(s for s in SEGMENTS if s.name == step["step"])
+        absolute_w = sum(abs(segment.effort[j] * w) for j, w in segment.velocity.items())
+        assert step["peak_power_w"] == pytest.approx(segment.power_w() + 43.0)
+        assert step["peak_mechanical_power_w"] == pytest.approx(absolute_w)
+
+
+def test_a_run_without_bags_links_no_image(tmp_path):
+    write_run_report(tmp_path, _document(), renders=False)
+    markdown = (tmp_path / "report.md").read_text()
+    assert image_links(markdown) == []
+    assert "No bag was recorded" in markdown
+
+
+def test_the_dig_verdict_comes_from_the_profile(run_dir):
+    document = json.loads((run_dir / "report.json").read_text())
+    assert document["trench"]["worked"] is True
+    assert document["trench"]["depth_reached_m"] == pytest.approx(0.16, abs=1e-6)
+    assert "The dig worked" in (run_dir / "report.md").read_text()
+
+
+@pytest.mark.parametrize(
+    ("depth", "worked"),
+    [(0.16, True), (0.10, True), (0.10 - DEPTH_TOLERANCE_M + 1e-4, True), (0.05, False)],
+)
+def test_trench_profile_along_and_across(depth, worked):
+    profile = trench_profile(_flat(), _trenched(depth), CONFIG, GROUND_Z)
+    assert profile.floor_z == pytest.approx(GROUND_Z - depth, abs=1e-9)
+    assert profile.worked is worked
+    assert profile.requested_floor_z == pytest.approx(GROUND_Z - 0.10)
+    assert profile.requested_bottom_z == pytest.approx(GROUND_Z - 0.15)
+    assert np.allclose(profile.along_before, GROUND_Z)
+    # Across the middle: carved within 6 cm of the line, untouched beyond 8 cm.
+    assert np.allclose(profile.across_after[np.abs(profile.across_m) <= 0.05], GROUND_Z - depth)
+    assert np.allclose(profile.across_after[np.abs(profile.across_m) >= 0.08], GROUND_Z)
+    # Along: untouched beyond the trench's ends.
+    assert np.allclose(profile.along_after[profile.along_m <= -0.05], GROUND_Z)
+
+
+def test_read_recording_gives_first_and_last_terrain_and_joint_states(run_dir):
+    recording = read_recording(sorted((run_dir / "bags").glob("*.bag")))
+    assert len(recording.terrains) == 2
+    assert np.allclose(recording.terrains[0][1].heights, _flat().heights, atol=1e-6)
+    assert np.allclose(recording.terrains[-1][1].heights, _trenched(0.16).heights, atol=1e-6)
+    assert recording.joint_names == list(JOINTS)
+    assert len(recording.joint_t) == 951  # 9.5 s at 100 Hz, none lost by the splits
+    assert recording.terrain_at(START_S + 1.0) is recording.terrains[0][1]
+
+
+def test_the_recorded_detector_is_used_when_the_bags_have_it(run_dir):
+    recording = read_recording(sorted((run_dir / "bags").glob("*.bag")))
+    trace = detector_trace(recording, START_S + 3.0, START_S + 7.0, 0.3)
+    assert trace is not None and trace.source == "recorded"
+    assert trace.contact_s == pytest.approx(CONTACT_S - 1.0 + 0.75)
+    assert len(trace.t_s) == 20
+
+
+def test_no_detector_and_no_contact_gives_no_figure_and_a_note(tmp_path):
+    _write_bags(tmp_path / "bags", detector=False)
+    recording = read_recording(sorted((tmp_path / "bags").glob("*.bag")))
+    assert detector_trace(recording, START_S + 3.0, START_S + 7.0, 0.3) is None
+    write_run_report(tmp_path, _document(), renders=False)
+    markdown = (tmp_path / "report.md").read_text()
+    assert "guarded_move.png" not in image_links(markdown)
+    assert "no detector figure" in markdown
+
+
+@pytest.mark.parametrize(
+    ("t0", "t1", "max_frames", "min_step", "count"),
+    [(0.0, 100.0, 200, 0.1, 200), (0.0, 10.0, 200, 0.1, 101), (5.0, 5.3, 50, 0.1, 4)],
+)
+def test_frame_times_are_bounded_evenly_spaced_and_cover_the_span(
+    t0, t1, max_frames, min_step, count
+):
+    times = frame_times(t0, t1, max_frames, min_step)
+    assert len(times) == count
+    assert times[0] == t0 and times[-1] == pytest.approx(t1)
+    assert np.allclose(np.diff(times), (t1 - t0) / (count - 1))
+
+
+@pytest.mark.parametrize(("t0", "t1", "max_frames"), [(1.0, 1.0, 10), (0.0, 1.0, 1)])
+def test_frame_times_refuses_an_empty_span_or_too_few_frames(t0, t1, max_frames):
+    with pytest.raises(ReplayError, match=f"max_frames={max_frames}"):
+        frame_times(t0, t1, max_frames, 0.1)
+
+
+def test_frames_show_the_last_joint_state_at_or_before_their_time_and_name_the_step(run_dir):
+    recording = read_recording(sorted((run_dir / "bags").glob("*.bag")))
+    k = 123
+    t = float(recording.joint_t[k])
+    assert recording.joints_at(t + 0.005) == recording.joints_at(t)
+    assert recording.joints_at(t - 0.005) == dict(
+        zip(JOINTS, recording.joint_positions[k - 1].tolist(), strict=True)
+    )
+    steps = [("unstow", 10.0, 13.0), ("grind", 14.0, 15.0)]
+    assert step_at(steps, 12.0) == "unstow"
+    assert step_at(steps, 13.5) == "between steps"
+
+
+def test_a_short_replay_has_its_frames_captions_and_rate(run_dir, tmp_path):
+    from PIL import Image
+
+    recording = read_recording(sorted((run_dir / "bags").glob("*.bag")))
+    steps = [("unstow", 10.0, 13.0), ("guarded_move", 13.0, 17.0), ("grind", 17.0, 19.5)]
+    result = make_replay(
+        recording, steps, tmp_path / "r.gif", max_frames=4, fps=10.0, width=160, height=120
+    )
+    assert result.frames == 4 and result.fps == 10.0
+    with Image.open(tmp_path / "r.gif") as gif:
+        assert gif.n_frames == 4
+        assert gif.info["duration"] == 100  # ms: 10 frames per second
+        assert gif.size == (result.width, result.height)
+        assert gif.size[1] > 120  # the caption band above the scene
+
+
+def _ndc(camera: Camera, points: np.ndarray) -> np.ndarray:
+    view = np.reshape(
+        pb.computeViewMatrixFromYawPitchRoll(
+            camera.target, camera.distance, camera.yaw, camera.pitch, 0.0, 2
+        ),
+        (4, 4),
+    ).T
+    projection = np.reshape(
+        pb.computeProjectionMatrixFOV(50.0, camera.width / camera.height, 0.05, 30.0), (4, 4)
+    ).T
+    clip = (projection @ view @ np.c_[points, np.ones(len(points))].T).T
+    return clip[:, :2] / clip[:, 3:4]
+
+
+@pytest.mark.parametrize(("yaw", "pitch"), [(35.0, -25.0), (70.0, -55.0), (-120.0, -10.0)])
+def test_a_fitted_camera_sees_every_point_and_fills_the_frame(yaw, pitch):
+    rng = np.random.default_rng(1)
+    points = rng.uniform([-0.5, -1.0, -0.3], [2.5, 1.0, 1.8], size=(40, 3))
+    camera = fit_camera(points, yaw=yaw, pitch=pitch, width=1024, height=768, margin=0.04)
+    ndc = _ndc(camera, points)
+    assert np.all(np.abs(ndc) <= 0.92 + 1e-6)  # 4 % of the width on each side
+    # Tight: some point touches the margin in x or y.
+    assert np.max(np.abs(ndc)) == pytest.approx(0.92, abs=1e-3)
+    right, up, forward = camera_axes(yaw, pitch)
+    assert np.allclose([right @ up, right @ forward, up @ forward], 0.0, atol=1e-6)  # float32
+
+
+def test_a_still_shows_no_heightfield_texture():
+    """The heightfield's checker texture drew a hard-edged blue half-plane: a flat terrain must
+    render in one colour family (grey-white), with no saturated blue region."""
+    from ow_mission.render import render_scene
+
+    image = render_scene(
+        {},
+        HeightMap.flat(GROUND_Z, half_extent=1.5, resolution=0.05, centre_x=1.0),
+        Camera((1.5, 0.0, GROUND_Z), 1.2, 35.0, -60.0, 160, 120),
+        URDF_PATH,
+    ).astype(int)
+    blue = (image[:, :, 2] - image[:, :, 0] > 40) & (image[:, :, 2] > 120)
+    assert blue.mean() < 0.01
