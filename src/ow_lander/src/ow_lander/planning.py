@@ -63,7 +63,9 @@ class ArmPlanner:
         return self.checker.full(arm, base)
 
     def arm(self, q: FloatArray) -> FloatArray:
-        """(6,) rad arm joints of a (9,) configuration."""
+        """(6,) rad arm joints of a (9,) configuration, a joint a hair beyond a limit (at most
+        :data:`~ow_lander.validity.START_LIMIT_TOLERANCE_RAD`) put on it: the state plans start
+        from (see :meth:`StateChecker.arm`)."""
         return self.checker.arm(q)
 
     def within_limits(self, arm: FloatArray) -> bool:

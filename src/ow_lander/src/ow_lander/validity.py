@@ -1,6 +1,10 @@
 """Validity of arm states and joint-space paths for the planner: joint limits and collisions with
 self, lander body, dock and terrain, paths checked state by state at a joint resolution. No ROS.
 
+A measured start state a hair beyond a joint limit (a joint resting on its hard stop) is planned
+from as if on the limit: :meth:`StateChecker.arm` clamps joints at most
+:data:`START_LIMIT_TOLERANCE_RAD` beyond a limit onto it before any validity check.
+
 States are arm vectors ``arm: (6,) rad`` in :data:`~ow_lander.description.ARM_JOINTS` order; the
 other joints (grinder, antenna) keep the values of a base configuration ``base: (9,)`` in
 pinocchio order (see :mod:`ow_lander.model`).
@@ -20,6 +24,12 @@ from ow_lander.model import LanderModel
 from ow_lander.terrain import HeightMap
 
 FloatArray = npt.NDArray[np.float64]
+
+#: rad, how far beyond a joint limit a measured configuration may lie and still be planned from,
+#: as if on the limit. A joint driven onto its hard stop rests on it or a hair beyond (the
+#: simulator's limit constraint is soft, a real encoder reads noise); refusing that state would
+#: leave the arm unable to move ever again. Anything further beyond is a real violation.
+START_LIMIT_TOLERANCE_RAD = 0.05
 
 
 @dataclass(frozen=True)
@@ -95,8 +105,20 @@ class StateChecker:
         return q
 
     def arm(self, q: FloatArray) -> FloatArray:
-        """(6,) rad arm joints of a (9,) configuration."""
-        return np.asarray(q, dtype=np.float64)[self.idx].copy()
+        """(6,) rad arm joints of a (9,) configuration (e.g. the measured one every plan starts
+        from), each joint at most :data:`START_LIMIT_TOLERANCE_RAD` beyond a limit put on the
+        limit (see :meth:`onto_limits`)."""
+        return self.onto_limits(np.asarray(q, dtype=np.float64)[self.idx])
+
+    def onto_limits(self, arm: FloatArray) -> FloatArray:
+        """A copy of ``arm`` (6,) rad with each joint that lies beyond a limit by at most
+        :data:`START_LIMIT_TOLERANCE_RAD` moved onto that limit; joints further beyond are kept
+        (the state stays invalid, and :meth:`explain` names them)."""
+        out = np.array(arm, dtype=np.float64)
+        clipped = np.minimum(np.maximum(out, self.lower), self.upper)
+        near = np.abs(out - clipped) <= START_LIMIT_TOLERANCE_RAD + 1e-9
+        out[near] = clipped[near]
+        return out
 
     def within_limits(self, arm: FloatArray) -> bool:
         """True when every arm joint is within its URDF limits."""

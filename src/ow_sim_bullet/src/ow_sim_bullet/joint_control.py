@@ -63,11 +63,41 @@ class JointSample:
     setpoint: FloatArray
 
 
+@dataclass(frozen=True)
+class ClippedSetpoint:
+    """A set-point beyond a joint's URDF limits that was moved onto the limit.
+
+    Attributes:
+        joint: joint name.
+        requested: rad, the set-point asked for (the most extreme one of a trajectory).
+        applied: rad, the limit it was clipped to.
+        lower: rad, the joint's lower limit.
+        upper: rad, the joint's upper limit.
+    """
+
+    joint: str
+    requested: float
+    applied: float
+    lower: float
+    upper: float
+
+    def describe(self) -> str:
+        """The clipping in words, for a warning."""
+        return (
+            f"set-point {self.requested:.6g} rad for {self.joint} is beyond its limits "
+            f"[{self.lower:.4g}, {self.upper:.4g}] rad; clipped to {self.applied:.4g} rad"
+        )
+
+
 class JointController:
     """One PID position controller per joint, with trajectories and the implicit damped step.
 
     Every joint array (positions, velocities, torques) is in the order of :attr:`names`, which is
     pinocchio's coordinate order, so no permutation is needed.
+
+    Set-points never leave the joints' URDF position limits: a commanded set-point or trajectory
+    point beyond a limit is clipped onto it (the commands return what they clipped), so a hostile
+    or mistaken command can drive a joint onto its limit but never hold it pressed beyond it.
 
     Args:
         model: pinocchio model of the lander, gravity set (not modified).
@@ -108,6 +138,9 @@ class JointController:
         n = len(self.names)
         self._zeros = np.zeros(n)
         self._effort_limit = np.array([joints[j].effort_limit for j in self.names])
+        #: rad, the joints' URDF position limits (pinocchio's, in :attr:`names` order).
+        self.lower = np.array(model.lowerPositionLimit, dtype=np.float64)
+        self.upper = np.array(model.upperPositionLimit, dtype=np.float64)
         self._negative_effort_limit = -self._effort_limit
         self._damping = np.array([joints[j].damping for j in self.names])
         self._negative_damping = -self._damping
@@ -122,6 +155,8 @@ class JointController:
         #: each followed trajectory with the indices of its joints that still follow it, in the
         #: trajectory's and in our joint order (derived from ``_trajectories``).
         self._followed: list[tuple[ActiveTrajectory, IndexArray, IndexArray]] = []
+        #: the position limits of those joints, in the same order (clip the sampled set-points).
+        self._followed_limits: list[tuple[FloatArray, FloatArray]] = []
         self._setpoint = np.zeros(n)
         self._integral = np.zeros(n)
 
@@ -145,11 +180,16 @@ class JointController:
         """(9,) rad, a copy of the set-points now."""
         return self._setpoint.copy()
 
-    def set_setpoint(self, joint: str, position: float) -> None:
+    def set_setpoint(self, joint: str, position: float) -> ClippedSetpoint | None:
         """Command one joint's position set-point (rad); cancels its trajectory.
 
+        A set-point beyond the joint's URDF limits is clipped onto the nearer limit.
+
+        Returns:
+            What was clipped, or None when the set-point was within the limits.
+
         Raises:
-            CommandError: unknown joint or non-finite position.
+            CommandError: unknown joint or non-finite position (the command is ignored).
         """
         k = self._joint(joint)
         if not math.isfinite(position):
@@ -157,20 +197,43 @@ class JointController:
             raise CommandError(msg)
         if self._trajectories.pop(joint, None) is not None:
             self._update_followed()
-        self._setpoint[k] = position
+        lower, upper = float(self.lower[k]), float(self.upper[k])
+        applied = min(max(position, lower), upper)
+        self._setpoint[k] = applied
+        if applied == position:
+            return None
+        return ClippedSetpoint(joint, position, applied, lower, upper)
 
-    def set_trajectory(self, trajectory: JointTrajectory, now: float) -> None:
+    def set_trajectory(self, trajectory: JointTrajectory, now: float) -> list[ClippedSetpoint]:
         """Follow ``trajectory`` on its joints from sim time ``now`` (s), replacing any
         trajectory they were following; it starts from their set-points.
+
+        Points beyond a joint's URDF limits are followed as if on the limit: the set-points
+        sampled from the trajectory are clipped into the limits at every step.
+
+        Returns:
+            One entry per joint with points beyond its limits (its most extreme point), in the
+            trajectory's joint order; empty when every point is within the limits.
 
         Raises:
             CommandError: the trajectory names an unknown joint.
         """
-        start = np.array([self._setpoint[self._joint(j)] for j in trajectory.joints])
+        columns = [self._joint(j) for j in trajectory.joints]
+        clipped = []
+        for i, (joint, k) in enumerate(zip(trajectory.joints, columns, strict=True)):
+            values = trajectory.positions[:, i]
+            lower, upper = float(self.lower[k]), float(self.upper[k])
+            low, high = float(values.min()), float(values.max())
+            if low < lower or high > upper:
+                worst = low if lower - low >= high - upper else high
+                applied = min(max(worst, lower), upper)
+                clipped.append(ClippedSetpoint(joint, worst, applied, lower, upper))
+        start = np.array([self._setpoint[k] for k in columns])
         active = ActiveTrajectory(trajectory, start, now)
         for joint in trajectory.joints:
             self._trajectories[joint] = active
         self._update_followed()
+        return clipped
 
     def _update_followed(self) -> None:
         """Derive ``_followed`` from ``_trajectories`` (after any change to it)."""
@@ -184,6 +247,7 @@ class JointController:
             src, dst = np.array(pairs, dtype=np.intp).T
             followed.append((active, src, dst))
         self._followed = followed
+        self._followed_limits = [(self.lower[dst], self.upper[dst]) for _, _, dst in followed]
 
     def set_gains(self, joint: str, gains: PidGains) -> None:
         """Change one joint's PID gains now; the integral is kept, within the new clamp.
@@ -278,10 +342,17 @@ class JointController:
         """
         v_set = np.zeros(len(self.names))
         if self._followed:
-            for active, src, dst in self._followed:
+            for (active, src, dst), (lower, upper) in zip(
+                self._followed, self._followed_limits, strict=True
+            ):
                 positions, velocities = active.sample(now)
-                self._setpoint[dst] = positions[src]
-                v_set[dst] = velocities[src]
+                wanted = positions[src]
+                setpoint = np.minimum(np.maximum(wanted, lower), upper)
+                velocity = velocities[src]
+                if np.count_nonzero(setpoint != wanted):  # held on a limit: no velocity
+                    velocity = np.where(setpoint != wanted, 0.0, velocity)
+                self._setpoint[dst] = setpoint
+                v_set[dst] = velocity
             if any(active.finished(now) for active, _, _ in self._followed):
                 for joint in [j for j, a in self._trajectories.items() if a.finished(now)]:
                     del self._trajectories[joint]

@@ -15,6 +15,7 @@ from ow_sim_bullet.errors import CommandError, SimError
 from ow_sim_bullet.outputs import SimOutputs
 from ow_sim_bullet.scheduling import Pacer
 from ow_sim_bullet.sim_core import BulletSim
+from ow_sim_bullet.trajectory import JointTrajectory
 
 T = TypeVar("T")
 
@@ -60,6 +61,52 @@ class SimRunner:
         with self._wake:
             self._queue.append(command)
             self._wake.notify()
+
+    def command_setpoint(self, joint: str, position: float, warn: Callable[[str], None]) -> None:
+        """Set one joint's set-point (rad) before the next step (:meth:`BulletSim.set_setpoint`).
+
+        Args:
+            joint: joint name.
+            position: rad; beyond the joint's URDF limits it is clipped onto the limit.
+            warn: called on the simulation thread with why the command was ignored (unknown
+                joint, non-finite position) or how it was clipped.
+        """
+
+        def command() -> None:
+            try:
+                clipped = self.sim.set_setpoint(joint, position)
+            except CommandError as error:
+                warn(str(error))
+                return
+            if clipped is not None:
+                warn(clipped.describe())
+
+        self.enqueue(command)
+
+    def command_trajectory(
+        self,
+        build: Callable[[float, tuple[str, ...]], JointTrajectory],
+        warn: Callable[[str], None],
+    ) -> None:
+        """Follow a trajectory from the next step (:meth:`BulletSim.set_trajectory`).
+
+        Args:
+            build: makes the trajectory from the sim time (s) and the simulation's joint names
+                (e.g. ``TrajectoryRequest.build``); raises CommandError for a bad one.
+            warn: called on the simulation thread with why the trajectory was ignored, or with
+                each joint whose points beyond its URDF limits are followed on the limit.
+        """
+
+        def command() -> None:
+            try:
+                clipped = self.sim.set_trajectory(build(self.sim.time, self.sim.names))
+            except CommandError as error:
+                warn(f"trajectory ignored: {error}")
+                return
+            for clip in clipped:
+                warn(f"trajectory {clip.describe()}")
+
+        self.enqueue(command)
 
     def call(self, command: Callable[[], T], timeout_s: float = CALL_TIMEOUT_S) -> T:
         """Run ``command`` on the simulation thread and return its result (or raise its error).

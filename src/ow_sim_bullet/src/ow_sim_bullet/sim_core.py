@@ -36,7 +36,7 @@ from ow_sim_bullet.bullet_terrain import BulletTerrain
 from ow_sim_bullet.carving import TerrainCarver, collision_surface_points
 from ow_sim_bullet.config import PidGains, SimConfig
 from ow_sim_bullet.errors import ConfigError
-from ow_sim_bullet.joint_control import FloatArray, JointController, JointSample
+from ow_sim_bullet.joint_control import ClippedSetpoint, FloatArray, JointController, JointSample
 from ow_sim_bullet.tool_forces import ToolForces
 from ow_sim_bullet.tool_tracking import TOOLS, ToolSnapshot, ToolTracker
 from ow_sim_bullet.trajectory import JointTrajectory
@@ -56,7 +56,7 @@ _TERRAIN_FRICTION = 0.5
 #: (each costs the multibody solver a Jacobian and 50 iterations) and fewer triangles.
 #: Process-wide in Bullet: every BulletSim sets the same value.
 _CONTACT_BREAKING_THRESHOLD = 0.005
-#: Cells of the terrain grid per carving point spacing along a tool's surface.
+#: Carving points per terrain cell along a tool's surface (their spacing is the cell over this).
 _POINTS_PER_CELL = 4.0
 
 #: Builds a terrain-force model that is not made in process (the node's topic-backed one).
@@ -255,21 +255,29 @@ class BulletSim:
         )
         self.tracker.reset()
 
-    def set_setpoint(self, joint: str, position: float) -> None:
-        """Command one joint's position set-point (rad); cancels its trajectory.
+    def set_setpoint(self, joint: str, position: float) -> ClippedSetpoint | None:
+        """Command one joint's position set-point (rad); cancels its trajectory. A set-point
+        beyond the joint's URDF limits is clipped onto the limit.
+
+        Returns:
+            What was clipped, or None.
 
         Raises:
-            CommandError: unknown joint or non-finite position.
+            CommandError: unknown joint or non-finite position (the command is ignored).
         """
-        self.controller.set_setpoint(joint, position)
+        return self.controller.set_setpoint(joint, position)
 
-    def set_trajectory(self, trajectory: JointTrajectory) -> None:
-        """Follow ``trajectory`` on its joints (replacing any trajectory they were following).
+    def set_trajectory(self, trajectory: JointTrajectory) -> list[ClippedSetpoint]:
+        """Follow ``trajectory`` on its joints (replacing any trajectory they were following);
+        points beyond a joint's URDF limits are followed on the limit.
+
+        Returns:
+            The joints with points beyond their limits (empty: none).
 
         Raises:
             CommandError: the trajectory names an unknown joint.
         """
-        self.controller.set_trajectory(trajectory, self.time)
+        return self.controller.set_trajectory(trajectory, self.time)
 
     def set_gains(self, joint: str, gains: PidGains) -> None:
         """Change one joint's PID gains now; the integral is kept, within the new clamp.

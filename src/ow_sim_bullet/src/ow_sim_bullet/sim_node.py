@@ -137,13 +137,7 @@ class SimNode:
 
     # ------------------------------------------------------------------ callbacks
     def _on_setpoint(self, joint: str, msg: Float64) -> None:
-        self.runner.enqueue(partial(self._set_setpoint, joint, msg.data))
-
-    def _set_setpoint(self, joint: str, position: float) -> None:
-        try:
-            self.sim.set_setpoint(joint, position)
-        except CommandError as error:
-            rospy.logerr_throttle(1.0, f"sim: {error}")
+        self.runner.command_setpoint(joint, msg.data, _warn)
 
     def _on_trajectory(self, msg: JointTrajectoryMsg) -> None:
         try:
@@ -151,13 +145,7 @@ class SimNode:
         except CommandError as error:
             rospy.logerr(f"sim: trajectory ignored: {error}")
             return
-        self.runner.enqueue(partial(self._follow, request))
-
-    def _follow(self, request: conversions.TrajectoryRequest) -> None:
-        try:
-            self.sim.set_trajectory(request.build(self.sim.time, self.sim.names))
-        except CommandError as error:
-            rospy.logerr(f"sim: trajectory ignored: {error}")
+        self.runner.command_trajectory(request.build, _warn)
 
     def _on_reset(self, _: Any) -> TriggerResponse:
         try:
@@ -223,6 +211,11 @@ def _batch_publisher(topic: str, data_class: type) -> wire.BatchPublisher:
         warnings.simplefilter("ignore", SyntaxWarning)
         publisher = rospy.Publisher(topic, data_class, queue_size=None)
     return wire.BatchPublisher(publisher, rospy.is_shutdown, rospy.logdebug)
+
+
+def _warn(text: str) -> None:
+    """A warning, repeated at most once a second (a topic can repeat a command at any rate)."""
+    rospy.logwarn_throttle_identical(1.0, f"sim: {text}")
 
 
 def _set_rostime(sim_time: float) -> None:

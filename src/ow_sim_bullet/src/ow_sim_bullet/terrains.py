@@ -30,6 +30,10 @@ WORKSPACE_CENTRE = (1.75, 0.05)
 WORKSPACE_HALF_AXES = (0.75, 0.95)
 #: m, half extent of the lander's footprint (footpads at |x|, |y| = 1.1 +- 0.09).
 LANDER_HALF_EXTENT = 1.25
+#: m, largest |z| in base_link a terrain may have anywhere. The arm reaches about 2.3 m from a
+#: shoulder 0.27 m above base_link; heights far beyond are a mistake (a unit, a sign, 1e308) and
+#: would overflow Bullet's heightfield and the carving arithmetic.
+MAX_TERRAIN_HEIGHT_M = 10.0
 
 
 def _grid() -> tuple[FloatArray, FloatArray]:
@@ -127,7 +131,8 @@ def load_file(
     v_max 65535 (16-bit) or 255 (8-bit); cells and centre as for ``.npy``.
 
     Raises:
-        TerrainSpecError: the file is missing, unreadable, of an unknown type or not a valid grid.
+        TerrainSpecError: the file is missing, unreadable, of an unknown type or not a valid grid,
+            or holds a height that is not finite or beyond +-:data:`MAX_TERRAIN_HEIGHT_M` m.
     """
     if not path.is_file():
         msg = f"terrain file {path} does not exist"
@@ -161,11 +166,36 @@ def load_file(
     if origin is None:
         rows, cols = heights.shape
         origin = (centre[0] - (cols - 1) * resolution / 2, centre[1] - (rows - 1) * resolution / 2)
+    heights = heights.astype(np.float64)
+    check_heights(heights, f"terrain file {path}")
     try:
-        return HeightMap(heights.astype(np.float64), resolution, origin[0], origin[1])
+        return HeightMap(heights, resolution, origin[0], origin[1])
     except TerrainError as error:
         msg = f"terrain file {path}: {error}"
         raise TerrainSpecError(msg) from error
+
+
+def check_heights(heights: FloatArray, what: str) -> None:
+    """Refuse finite heights beyond :data:`MAX_TERRAIN_HEIGHT_M` (non-finite ones are refused
+    where they are parsed: ``float`` for flat, :class:`HeightMap` for files).
+
+    Args:
+        heights: m, base_link z, any shape.
+        what: the source, named in the message.
+
+    Raises:
+        TerrainSpecError: naming the first bad value and the limit.
+    """
+    bad = np.isfinite(heights) & (np.abs(heights) > MAX_TERRAIN_HEIGHT_M)
+    if np.count_nonzero(bad):
+        index = tuple(int(i) for i in np.argwhere(bad)[0])
+        value = float(heights[index])
+        where = f" at cell {index}" if heights.ndim else ""
+        msg = (
+            f"{what}: height {value:g} m{where} is outside the sane range "
+            f"[-{MAX_TERRAIN_HEIGHT_M:g}, {MAX_TERRAIN_HEIGHT_M:g}] m (base_link z)"
+        )
+        raise TerrainSpecError(msg)
 
 
 def _read_png(path: Path, height_range: tuple[float, float]) -> FloatArray:
@@ -201,7 +231,8 @@ def parse_terrain_spec(
         png_height_range: (z at pixel 0, z at full scale) m for PNG files.
 
     Raises:
-        TerrainSpecError: unknown form, bad number or unreadable file, with the reason.
+        TerrainSpecError: unknown form, bad number, unreadable file, or a height that is not
+            finite or beyond +-:data:`MAX_TERRAIN_HEIGHT_M`, with the reason.
     """
     kind, sep, arg = spec.partition(":")
     kind = kind.strip().lower()
@@ -217,6 +248,7 @@ def parse_terrain_spec(
         if not math.isfinite(z):
             msg = f"terrain spec {spec!r}: flat height {arg!r} is not a finite number (m)"
             raise TerrainSpecError(msg)
+        check_heights(np.array(z), f"terrain spec {spec!r}")
         return flat(z)
     if kind == "europa":
         if not arg.isdigit():
