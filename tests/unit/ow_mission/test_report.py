@@ -360,3 +360,32 @@ def test_a_still_shows_no_heightfield_texture():
     ).astype(int)
     blue = (image[:, :, 2] - image[:, :, 0] > 40) & (image[:, :, 2] > 120)
     assert blue.mean() < 0.01
+
+
+def test_the_detector_is_replayed_from_joint_states_when_not_recorded():
+    """A scoop tip descending at 25 mm/s that stops at the ground at t = 14 s: the paper's
+    detector replayed on FK of the joint states fires within a few /tf periods of the stop."""
+    from ow_lander.description import UNSTOWED
+    from ow_lander.model import LanderModel
+    from ow_mission.replay import Recording
+
+    model = LanderModel()
+    q = model.q_from(dict(UNSTOWED))
+    t = np.arange(10.0, 16.0, 0.01)
+    stop_s, speed = 14.0, 0.025
+    names = list(model.model.names)[1:]
+    rows = []
+    for ti in t:
+        z = 0.0 - speed * (min(ti, stop_s) - 10.0)
+        q = model.ik("l_scoop_tip", [1.65, 0.0, z], q)
+        rows.append([q[model.index(name)] for name in names])
+    recording = Recording(
+        [], t, names, np.vstack(rows), contacts=[(stop_s + 0.1, np.array([1.65, 0.0, -0.1]))]
+    )
+    trace = detector_trace(recording, 10.0, 16.0, relative_tolerance=0.3)
+    assert trace is not None and trace.source == "replayed"
+    assert trace.contact_s is not None
+    assert stop_s <= trace.contact_s <= stop_s + 0.2
+    assert np.nanmax(trace.threshold) == pytest.approx(-speed * 0.7, rel=0.05)
+    steady = (trace.t_s > 10.5) & (trace.t_s < 13.5)
+    assert np.allclose(trace.signal[steady], -speed, rtol=0.02)
