@@ -4,12 +4,13 @@ import json
 import subprocess
 from datetime import datetime
 
+import numpy as np
 import pandas as pd
 import pytest
 from rosbags.highlevel import AnyReader
 
 from ow_power.analysis import analyze, format_table, pair_operations, plot_power, write_summary
-from ow_power.bagwriter import SplitBagWriter
+from ow_power.bagwriter import SplitBagWriter, record_time_ns, starts_with_header
 from ow_power.config import PowerConfig
 from ow_power.errors import AnalysisError, RecorderError
 from ow_power.synthetic import OW_MSGS_DIR, BagMessages, Segment, ow_typestore, write_run
@@ -204,3 +205,127 @@ def test_a_bag_without_power_or_joint_states_is_an_error(tmp_path):
     writer.close()
     with pytest.raises(AnalysisError, match="no power samples"):
         analyze([tmp_path])
+
+
+# ------------------------------------------------------- bags that replay in viewers (ow_viz)
+def _with_tf(store):
+    """``store`` knowing tf2_msgs/TFMessage (not in rosbags' Noetic store)."""
+    from rosbags.typesys import get_types_from_msg
+
+    store.register(
+        get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage")
+    )
+    return store
+
+
+def _latched_run(tmp_path):
+    """10 s of stamped joint states, split every 4 s, with latched topics sent once at the
+    start (two publishers of /tf_static, as the simulation and the viz node) and a terrain
+    marker replaced half-way."""
+    m = BagMessages()
+    _with_tf(m.store)
+    writer = SplitBagWriter(tmp_path, split_duration_s=4.0, start=START)
+    description = m.serialize("std_msgs/msg/String", data="<robot name='lander'/>")
+    writer.write("/robot_description", *description[:3], 10**9, description[3], True, "/viz")
+    for callerid, child in (("/sim", "l_ant_foot"), ("/viz", "base_link")):
+        transform = m.store.types["geometry_msgs/msg/TransformStamped"](
+            header=m.header(10**9, "world"),
+            child_frame_id=child,
+            transform=m.store.types["geometry_msgs/msg/Transform"](
+                translation=m.store.types["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0),
+                rotation=m.store.types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+            ),
+        )
+        tf = m.serialize("tf2_msgs/msg/TFMessage", transforms=[transform])
+        writer.write("/tf_static", *tf[:3], 10**9, tf[3], True, callerid)
+    stamps = []
+    for k in range(1001):  # 100 Hz, received in clumps of 4 (as the simulation sends them)
+        stamp_ns = 10**9 + k * 10**7
+        arrival_ns = 10**9 + (k // 4 + 1) * 4 * 10**7
+        state = m.serialize(
+            "sensor_msgs/msg/JointState",
+            header=m.header(stamp_ns, "base_link"),
+            name=["j_shou_yaw"],
+            position=np.zeros(1),
+            velocity=np.zeros(1),
+            effort=np.zeros(1),
+        )
+        stamps.append(stamp_ns)
+        writer.write(
+            "/joint_states", *state[:3], record_time_ns(state[2], state[3], arrival_ns), state[3]
+        )
+        if k in (0, 500):
+            marker = m.serialize("std_msgs/msg/String", data=f"terrain {k}")
+            writer.write("/viz/terrain", *marker[:3], arrival_ns, marker[3], True, "/viz")
+    return writer.close(), stamps
+
+
+def test_every_split_file_has_every_latched_topic_flagged_as_latched(tmp_path):
+    import rosbag
+
+    bags, _ = _latched_run(tmp_path)
+    assert len(bags) == 3
+    for path in bags:
+        with rosbag.Bag(str(path)) as bag:
+            topics = bag.get_type_and_topic_info().topics
+            assert topics["/robot_description"].msg_type == "std_msgs/String"
+            assert topics["/tf_static"].message_count == 2  # one per publisher
+            assert topics["/tf_static"].connections == 2
+            for connection in bag._connections.values():
+                latched = connection.topic != "/joint_states"
+                assert (connection.header.get("latching") == b"1") == latched, connection.topic
+            first_ns = min(t.to_nsec() for _, _, t in bag.read_messages())
+            latched_msgs = list(bag.read_messages(topics=["/robot_description", "/tf_static"]))
+            # Repeated at the start of the file, so a viewer opening it has them at once.
+            assert all(t.to_nsec() == first_ns for _, _, t in latched_msgs), path.name
+            children = {
+                m.transforms[0].child_frame_id for _, m, _ in bag.read_messages("/tf_static")
+            }
+            assert children == {"l_ant_foot", "base_link"}
+    # The latest terrain is the one repeated: the second half's files show the replaced one.
+    with rosbag.Bag(str(bags[-1])) as bag:
+        assert [m.data for _, m, _ in bag.read_messages("/viz/terrain")] == ["terrain 500"]
+
+
+def test_record_times_are_header_stamps_not_arrival_clumps(tmp_path):
+    import rosbag
+
+    bags, stamps = _latched_run(tmp_path)
+    times = []
+    for path in bags:
+        with rosbag.Bag(str(path)) as bag:
+            for _, msg, t in bag.read_messages("/joint_states"):
+                assert t == msg.header.stamp
+                times.append(t.to_nsec())
+    assert times == stamps
+
+
+@pytest.mark.parametrize(
+    ("msgtype", "has_header"),
+    [
+        ("sensor_msgs/msg/JointState", True),
+        ("visualization_msgs/msg/Marker", True),
+        ("geometry_msgs/msg/WrenchStamped", True),
+        ("tf2_msgs/msg/TFMessage", False),  # headers inside its transforms only
+        ("std_msgs/msg/String", False),
+        ("std_msgs/msg/Header", False),
+        ("ow_msgs/msg/Power", True),
+    ],
+)
+def test_a_message_is_stamped_by_its_header_only_when_it_starts_with_one(msgtype, has_header):
+    msgdef, _ = _with_tf(ow_typestore()).generate_msgdef(msgtype)
+    assert starts_with_header(msgdef) == has_header
+    genpy_style = "# a comment\nuint8 ADD=0\nHeader header  # stamp\nfloat64 x\n"
+    assert starts_with_header(genpy_style)
+
+
+def test_a_header_stamp_of_zero_takes_the_arrival_time():
+    m = BagMessages()
+    _, _, msgdef, data = m.serialize(
+        "geometry_msgs/msg/PointStamped",
+        header=m.header(0),
+        point=m.store.types["geometry_msgs/msg/Point"](x=0.0, y=0.0, z=0.0),
+    )
+    assert record_time_ns(msgdef, data, 123) == 123
+    with pytest.raises(RecorderError, match="a message of 3 bytes cannot start with a Header"):
+        record_time_ns(msgdef, b"abc", 1)

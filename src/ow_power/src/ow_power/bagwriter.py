@@ -11,13 +11,20 @@ whose name is taken gets a ``-1``, ``-2``... suffix, and rosbags opens files exc
 
 Messages arrive serialised (ROS 1 wire format) with their type, MD5 and full definition, exactly
 what a ROS subscriber's connection header gives, so any message type is recorded unchanged.
+Messages of latched publishers (``/tf_static``, ``/robot_description``, markers) are flagged
+``latching=1`` in the bag's connection header, as ``rosbag record`` does, and the last one of each
+(topic, publisher) is written again at the start of every later file of the run, so that each file
+replays on its own with the robot, its static frames and the terrain.
 """
 
 from __future__ import annotations
 
 import os
+import re
+import struct
 import threading
 from collections.abc import Callable
+from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
@@ -29,6 +36,64 @@ from ow_power.errors import RecorderError
 
 #: Suffix of the bag being written; it becomes ``.bag`` when the file is closed.
 ACTIVE_SUFFIX = ".active"
+
+
+#: The first field of a message definition, after comments and constants.
+_FIRST_FIELD = re.compile(r"^\s*([\w/]+)(\[\d*\])?\s+(\w+)\s*$")
+_STAMP = struct.Struct("<II")
+
+
+def starts_with_header(msgdef: str) -> bool:
+    """True when the message's first field is a ``std_msgs/Header`` (``Header header``).
+
+    Args:
+        msgdef: the full message definition, as in the connection header.
+    """
+    for line in msgdef.splitlines():
+        text = line.split("#", 1)[0].strip()
+        if not text:
+            continue
+        if text.startswith("=" * 10):  # the definitions of nested types begin
+            return False
+        field = _FIRST_FIELD.match(text)
+        if field is None:  # a constant (``uint8 ADD=0``)
+            continue
+        return field.group(1) in ("Header", "std_msgs/Header") and field.group(2) is None
+    return False
+
+
+def header_stamp_ns(data: bytes) -> int:
+    """ns, ``header.stamp`` of a serialised message whose first field is a Header.
+
+    The wire format starts with the header's ``uint32 seq``, ``uint32 secs``, ``uint32 nsecs``.
+
+    Raises:
+        RecorderError: ``data`` is too short to hold a header.
+    """
+    if len(data) < 12:
+        msg = f"a message of {len(data)} bytes cannot start with a Header (12 bytes at least)"
+        raise RecorderError(msg)
+    secs, nsecs = _STAMP.unpack_from(data, 4)
+    return secs * 1_000_000_000 + nsecs
+
+
+def record_time_ns(msgdef: str, data: bytes, arrival_ns: int) -> int:
+    """ns, the bag time of a message: its ``header.stamp`` when its first field is a Header and
+    the stamp is set, else ``arrival_ns`` (the receipt time on the ROS clock).
+
+    Header stamps keep the times of a batch the simulation sends at once (its physics steps)
+    instead of clumping them at the arrival time.
+
+    Args:
+        msgdef: the full message definition, as in the connection header.
+        data: the message in ROS 1 wire format.
+        arrival_ns: ns, when the message arrived (simulation clock).
+
+    Raises:
+        RecorderError: a message declared with a Header is too short to hold one.
+    """
+    stamp_ns = header_stamp_ns(data) if starts_with_header(msgdef) else 0
+    return stamp_ns or arrival_ns
 
 
 def run_name(directory: Path, prefix: str, start: datetime) -> str:
@@ -45,6 +110,19 @@ def run_name(directory: Path, prefix: str, start: datetime) -> str:
         n += 1
         name = f"{base}-{n}"
     return name
+
+
+@dataclass(frozen=True)
+class _Message:
+    """One serialised message and its connection (what :meth:`SplitBagWriter.write` takes)."""
+
+    topic: str
+    msgtype: str
+    md5sum: str
+    msgdef: str
+    callerid: str
+    latching: bool
+    data: bytes
 
 
 class SplitBagWriter:
@@ -97,7 +175,9 @@ class SplitBagWriter:
         self._lock = threading.Lock()
         self._index = 0
         self._writer: Writer | None = None
-        self._connections: dict[tuple[str, str, str], Connection] = {}
+        self._connections: dict[tuple[str, str, str, str, bool], Connection] = {}
+        #: The last message of each latched (topic, publisher), repeated in every new file.
+        self._latched: dict[tuple[str, str], _Message] = {}
         self._file_start_ns = 0
         self._file_bytes = 0
         self._closed = False
@@ -109,7 +189,15 @@ class SplitBagWriter:
         return None if writer is None else writer.path
 
     def write(
-        self, topic: str, msgtype: str, md5sum: str, msgdef: str, stamp_ns: int, data: bytes
+        self,
+        topic: str,
+        msgtype: str,
+        md5sum: str,
+        msgdef: str,
+        stamp_ns: int,
+        data: bytes,
+        latching: bool = False,
+        callerid: str = "",
     ) -> bool:
         """Append one serialised message.
 
@@ -118,8 +206,12 @@ class SplitBagWriter:
             msgtype: ROS 1 type, ``pkg/Type`` (``pkg/msg/Type`` accepted too).
             md5sum: the type's MD5, as in the connection header.
             msgdef: the full message definition, as in the connection header.
-            stamp_ns: ns, the bag time of the message (receipt time, simulation clock).
+            stamp_ns: ns, the bag time of the message (simulation clock).
             data: the message in ROS 1 wire format.
+            latching: the publisher latches the topic (connection header ``latching: 1``): the
+                connection is flagged so, and the message is repeated at the start of each
+                later file until the same publisher sends another.
+            callerid: the publishing node (connection header ``callerid``); "" leaves it out.
 
         Returns:
             False when the writer is closed already (the message is dropped), else True.
@@ -127,6 +219,7 @@ class SplitBagWriter:
         Raises:
             RecorderError: a file cannot be created or written.
         """
+        message = _Message(topic, msgtype, md5sum, msgdef, callerid, latching, data)
         with self._lock:
             if self._closed:
                 return False
@@ -134,24 +227,39 @@ class SplitBagWriter:
                 self._close_file()
             if self._writer is None:
                 self._open_file(stamp_ns)
+                # Each file replays on its own: the latched state first, at the file's start.
+                for repeated in self._latched.values():
+                    if (repeated.topic, repeated.callerid) != (topic, callerid):
+                        self._append(repeated, stamp_ns)
             if self._file_start_ns == 0:
                 # Stamp 0 means the simulation clock had not started: the window opens later.
                 self._file_start_ns = stamp_ns
-            assert self._writer is not None
-            key = (topic, msgtype, md5sum)
-            connection = self._connections.get(key)
-            try:
-                if connection is None:
-                    connection = self._writer.add_connection(
-                        topic, normalize_msgtype(msgtype), msgdef=msgdef, md5sum=md5sum
-                    )
-                    self._connections[key] = connection
-                self._writer.write(connection, stamp_ns, data)
-            except (WriterError, OSError) as exc:
-                msg = f"cannot write {topic} to {self._writer.path}: {exc}"
-                raise RecorderError(msg) from exc
-            self._file_bytes += len(data)
+            if latching:
+                self._latched[(topic, callerid)] = message
+            self._append(message, stamp_ns)
             return True
+
+    def _append(self, message: _Message, stamp_ns: int) -> None:
+        writer = self._writer
+        assert writer is not None
+        key = (message.topic, message.msgtype, message.md5sum, message.callerid, message.latching)
+        connection = self._connections.get(key)
+        try:
+            if connection is None:
+                connection = writer.add_connection(
+                    message.topic,
+                    normalize_msgtype(message.msgtype),
+                    msgdef=message.msgdef,
+                    md5sum=message.md5sum,
+                    callerid=message.callerid or None,
+                    latching=1 if message.latching else None,
+                )
+                self._connections[key] = connection
+            writer.write(connection, stamp_ns, message.data)
+        except (WriterError, OSError) as exc:
+            msg = f"cannot write {message.topic} to {writer.path}: {exc}"
+            raise RecorderError(msg) from exc
+        self._file_bytes += len(message.data)
 
     def close(self) -> list[Path]:
         """Close and rename the open file; later :meth:`write` calls drop their message.

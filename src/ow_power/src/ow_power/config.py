@@ -31,6 +31,14 @@ DEFAULT_RECORD_TOPICS: tuple[str, ...] = (
     "/sim/scoop_wrench",
     "/sim/grinder_wrench",
     "/sim/joint_damping",
+    # For viewers (RViz through `rosbag play --clock`, Foxglove, Lichtblick): the frames, the
+    # robot and the markers of ow_viz; the latched ones are repeated in every file of a run.
+    "/tf",
+    "/tf_static",
+    "/robot_description",
+    "/viz/terrain",
+    "/viz/tool_path",
+    "/viz/ground_point",
 )
 
 #: Bag compressions the recorder writes. LZ4 is refused: ROS's own lz4 reader cannot read the

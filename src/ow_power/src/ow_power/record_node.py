@@ -14,7 +14,7 @@ from typing import Any
 import rospy
 from std_msgs.msg import String
 
-from ow_power.bagwriter import SplitBagWriter
+from ow_power.bagwriter import SplitBagWriter, record_time_ns
 from ow_power.config import RecorderConfig
 from ow_power.errors import ConfigError, RecorderError
 
@@ -39,10 +39,12 @@ class RecorderNode:
     """Records topics of any type into ROS 1 bags that ``rosbag`` and rosbags read.
 
     Messages are written as received (serialised bytes, type, MD5 and definition from the
-    connection header), stamped with the receipt time on the ROS clock (simulation time under
-    ``/use_sim_time``). Files are split by message time and size; each closed file is a complete
-    ``.bag``, the open one is ``.bag.active``. SIGINT and SIGTERM close the open file and exit;
-    SIGKILL loses the open file only.
+    connection header). A message whose first field is a Header is written at its
+    ``header.stamp``; others (and stamps of 0) at the receipt time on the ROS clock (simulation
+    time under ``/use_sim_time``). Latched publishers' connections are flagged ``latching=1``
+    and their last message is repeated at the start of every file. Files are split by message
+    time and size; each closed file is a complete ``.bag``, the open one is ``.bag.active``.
+    SIGINT and SIGTERM close the open file and exit; SIGKILL loses the open file only.
 
     ROS API:
         Subscribes:
@@ -91,14 +93,17 @@ class RecorderNode:
 
     def _on_message(self, msg: Any, topic: str) -> None:
         header = msg._connection_header
+        msgdef = header["message_definition"]
         try:
             written = self._bags.write(
                 topic,
                 header["type"],
                 header["md5sum"],
-                header["message_definition"],
-                rospy.get_rostime().to_nsec(),
+                msgdef,
+                record_time_ns(msgdef, msg._buff, rospy.get_rostime().to_nsec()),
                 msg._buff,
+                latching=header.get("latching", "0") == "1",
+                callerid=header.get("callerid", ""),
             )
         except RecorderError as exc:
             rospy.logerr_throttle(5.0, f"record: {exc}")
