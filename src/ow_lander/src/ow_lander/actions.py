@@ -192,10 +192,15 @@ def to_request(
     if action.startswith("ArmMoveJoints"):
         angles = np.asarray(goal["angles"], dtype=np.float64)
         target = arm + angles if goal["relative"] else angles
-        return ActionRequest("move_joints", {"angles": target.tolist()}, limits)
+        request = {"angles": target.tolist(), "guarded": limits is not None}
+        return ActionRequest("move_joints", request, limits)
     if action.startswith("ArmMoveCartesian"):
         X = target_pose(goal, X_base_tip)
-        request = {"position": X[:3, 3].tolist(), "rotation": X[:3, :3].tolist()}
+        request = {
+            "position": X[:3, 3].tolist(),
+            "rotation": X[:3, :3].tolist(),
+            "guarded": limits is not None,
+        }
         return ActionRequest("move_cartesian", request, limits, target_pose=X)
     if action == "ArmFindSurface":
         point = _point(goal, "position", X_base_tip)

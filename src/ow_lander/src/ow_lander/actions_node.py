@@ -123,10 +123,15 @@ class ArmActions:
             if ours:
                 self._cancelled.set()
         if ours:
-            self.node.executor.stop()
+            # Not in this callback: actionlib holds the server's lock while it runs, which the
+            # feedback (on the joint states the stop waits for) needs too.
+            threading.Thread(target=self.node.executor.stop, daemon=True).start()
 
     def _on_stop(self, handle: Any) -> None:
         handle.set_accepted()
+        threading.Thread(target=self._stop, args=(handle,), daemon=True).start()
+
+    def _stop(self, handle: Any) -> None:
         if self.node.executor.stop():
             handle.set_succeeded(text="stopped the arm; it holds where it stopped")
         else:
@@ -184,10 +189,10 @@ class ArmActions:
         self, name: str, request: ActionRequest, result: ExecutionResult
     ) -> tuple[bool, str]:
         """Success and message of an execution, with the action's own checks."""
+        if name == "ArmFindSurface" and not result.ground_found and not result.stopped:
+            return False, f"No surface was found: {result.message}"
         if not result.success:
             return False, result.message
-        if name == "ArmFindSurface" and not result.ground_found:
-            return False, f"No surface was found: {result.message}"
         if request.target_pose is not None and not result.ground_found:
             state = self._state()
             distance, angle = pose_error(request.target_pose, state.X_base_tip)

@@ -39,6 +39,12 @@ FloatArray = npt.NDArray[np.float64]
 
 #: Joint states of a guarded descent kept to look up the one at the contact stamp (10 s at 50 Hz).
 JOINT_HISTORY = 500
+#: rad/s, a stopping arm is at rest when no joint moves faster than this.
+REST_SPEED = 0.005
+#: rad/s, a joint slower than this at a stop request needs no braking.
+MOVING_SPEED = 0.02
+#: s (sim), longest braking after a stop request before the arm is held wherever it is.
+MAX_BRAKING_S = 1.0
 #: Label of the trajectory segment the ground detector watches.
 GUARDED = "guarded"
 
@@ -102,6 +108,23 @@ class Decision:
     setpoints: dict[str, float] | None = None
     hold: dict[str, float] | None = None
     result: ExecutionResult | None = None
+
+
+@dataclass
+class Braking:
+    """The arm braking after a stop request (joint arrays in trajectory order).
+
+    Attributes:
+        direction: (n,) the sign of each joint's velocity at the stop (0: it was not moving).
+        last_stamp: s (sim) of the latest joint state.
+        last: (n,) rad, the latest joint state.
+        done: (n,) each joint has stopped or turned back since (or was not moving).
+    """
+
+    direction: FloatArray
+    last_stamp: float
+    last: FloatArray
+    done: npt.NDArray[np.bool_]
 
 
 class GuardWatch:
@@ -228,6 +251,7 @@ class ExecutionMonitor:
         self._next_command = t_start
         self.signals: list[DetectorSignal] = []
         self.stop_time: float | None = None
+        self.braking: Braking | None = None
         self.guarded = trajectory.segment_span(GUARDED)
         # The detector watches the *steady* descent (the paper): samples of the acceleration
         # ramp would set its threshold so close to zero velocity that ground which gives a
@@ -310,7 +334,8 @@ class ExecutionMonitor:
 
     def request_stop(self, stamp: float) -> None:
         """Stop at ``stamp`` (s, sim; a cancelled action or ``ArmStop``): the next decision
-        holds the arm at the joint state of that stamp and ends the execution as stopped."""
+        holds the arm at the joint state of that stamp (it brakes); once it is at rest, the
+        arm is held where it came to rest and the execution ends as stopped."""
         if self.stop_time is None:
             self.stop_time = stamp
 
@@ -328,7 +353,7 @@ class ExecutionMonitor:
         if self.contact_time is not None:
             return self._contact(here, t)
         if self.stop_time is not None:
-            return self._stop(here, t)
+            return self._stop(stamp, here, t)
         setpoints = None
         if cfg.interface == "position_controllers" and stamp >= self._next_command:
             ahead = self.trajectory.sample(max(t + 1.0 / cfg.command_rate_hz, 0.0))
@@ -365,16 +390,39 @@ class ExecutionMonitor:
         hold = {j: self._latest[j] for j in self.trajectory.joints}
         return Decision(None, hold, ExecutionResult(False, message))
 
-    def _stop(self, here: FloatArray, t: float) -> Decision:
-        """Stopped on request: hold the joint state of the stop stamp (the arm goes back there
-        if the simulation ran on before the hold arrived)."""
+    def _stop(self, stamp: float, here: FloatArray, t: float) -> Decision:
+        """Stopping on request. First hold the joint state of the stop stamp: the joint
+        controllers brake the arm, which overshoots that hold a little. Once every joint that
+        was moving has stopped or turned back (or after ``MAX_BRAKING_S``), hold it right
+        there: a hold behind the arm would pull it back for seconds (the controllers' slow
+        return), one where it stands keeps it still."""
         assert self.stop_time is not None
-        before = [values for stamp, values in self._history if stamp <= self.stop_time]
         names = self.trajectory.joints
-        hold = np.array([before[-1][j] for j in names]) if before else here
-        message = f"stopped on request at t={self.stop_time - self.t_start:.2f} s"
+        if self.braking is None:
+            before = [(s, v) for s, v in self._history if s <= self.stop_time]
+            hold = np.array([before[-1][1][j] for j in names]) if before else here
+            direction = np.zeros(len(names))
+            if len(before) >= 2 and before[-1][0] > before[-2][0]:
+                previous = np.array([before[-2][1][j] for j in names])
+                velocity = (hold - previous) / (before[-1][0] - before[-2][0])
+                direction = np.where(np.abs(velocity) > MOVING_SPEED, np.sign(velocity), 0.0)
+            self.braking = Braking(direction, stamp, here, direction == 0)
+            return Decision(None, _by_name(names, hold))
+        brake = self.braking
+        if stamp <= brake.last_stamp:
+            return Decision()
+        step = here - brake.last
+        speed = np.abs(step) / (stamp - brake.last_stamp)
+        brake.last_stamp, brake.last = stamp, here
+        brake.done |= (np.sign(step) != brake.direction) | (speed < REST_SPEED)
+        if not np.all(brake.done) and stamp - self.stop_time < MAX_BRAKING_S:
+            return Decision()
+        message = (
+            f"stopped on request at t={self.stop_time - self.t_start:.2f} s, at rest "
+            f"{stamp - self.stop_time:.2f} s later"
+        )
         result = ExecutionResult(False, message, t, stopped=True)
-        return Decision(None, _by_name(names, hold), result)
+        return Decision(None, _by_name(names, here), result)
 
     def _contact(self, here: FloatArray, t: float) -> Decision:
         """Ground found: hold where the arm was at the contact stamp. The simulation may have

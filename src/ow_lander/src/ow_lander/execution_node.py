@@ -109,7 +109,7 @@ class ArmExecutor(ArmObserver):
         while not rospy.is_shutdown():
 
             def news(last: float = last) -> bool:
-                stop = monitor.stop_time is not None
+                stop = monitor.stop_time is not None and monitor.braking is None
                 return self._joint_stamp != last or monitor.contact_time is not None or stop
 
             with self._state_changed:
@@ -132,23 +132,29 @@ class ArmExecutor(ArmObserver):
         return ExecutionResult(False, "shutting down")
 
     def stop(self) -> bool:
-        """Stop the running execution where the arm is now and hold it there; False when none
-        runs. The simulation's clock is paused from the stop request until the hold is
-        delivered, so the arm stops at once in simulation time at any simulation speed."""
+        """Stop the running execution and hold the arm where it comes to rest; False when none
+        runs. The simulation's clock is paused from the stop request until the braking hold is
+        delivered, so the arm starts braking at once in simulation time at any speed."""
         paused = self._sim_clock.call("pause")
         try:
+            if paused and self._monitor is not None:
+                # The newest joint state is then the paused simulation's: the arm brakes there.
+                self._wait_quiet(self.config.delivery_wait_s)
             with self._state_changed:
                 monitor = self._monitor
                 if monitor is not None:
                     monitor.request_stop(self._joint_stamp)
                     self._state_changed.notify_all()
-            if monitor is not None:
-                self._stopped.wait(timeout=self.config.joint_state_timeout_s)
-                if paused:
-                    time.sleep(self.config.delivery_wait_s)
+            deadline = time.monotonic() + self.config.joint_state_timeout_s
+            while monitor is not None and monitor.braking is None and time.monotonic() < deadline:
+                time.sleep(0.002)
+            if paused:
+                time.sleep(self.config.delivery_wait_s)
         finally:
             if paused:
                 self._sim_clock.call("resume")
+        if monitor is not None:
+            self._stopped.wait(timeout=self.config.joint_state_timeout_s)
         return monitor is not None
 
     def _command(self, decision: Decision) -> None:

@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ow_lander import ground_operations
-from ow_lander.description import ARM_JOINTS, SCOOP_TIP_FRAME, STOWED, UNSTOWED
+from ow_lander.description import ARM_JOINTS, SCOOP_LINK, SCOOP_TIP_FRAME, STOWED, UNSTOWED
 from ow_lander.errors import PlanningError
 from ow_lander.motions import SHOULDER_XY, ArmMotions, ry, shoulder_yaw_for
 from ow_lander.operation_plan import OperationPlan, check_finite
@@ -205,7 +205,9 @@ class Operations:
     def plan_move_joints(
         self, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]
     ) -> OperationPlan:
-        """Free-space motion to the arm joints ``angles`` (6,) rad, shoulder to scoop.
+        """Free-space motion to the arm joints ``angles`` (6,) rad, shoulder to scoop; with
+        ``guarded`` (a guarded action) the scoop may go into the terrain, where the
+        force/torque guard stops it.
 
         Raises:
             PlanningError: a target outside its joint limits, in collision, or no path.
@@ -216,20 +218,22 @@ class Operations:
         if bad:
             msg = f"target out of the joint limits: {'; '.join(bad)}"
             raise PlanningError(msg)
-        path = self.planner.plan_free(start, goal, self.motions.context(q, terrain))
+        ctx = self.motions.context(q, terrain, SCOOP_LINK if request.get("guarded") else None)
+        path = self.planner.plan_free(start, goal, ctx)
         return OperationPlan("move_joints", [PathSegment("move", path)], {})
 
     def plan_move_cartesian(
         self, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]
     ) -> OperationPlan:
         """Free-space motion putting the scoop tip at ``position`` (3,) m with ``rotation``
-        (3, 3) in base_link (IK on the arm's present branch, as MoveIt's pose targets).
+        (3, 3) in base_link (IK on the arm's present branch, as MoveIt's pose targets); with
+        ``guarded`` the scoop may go into the terrain.
 
         Raises:
             PlanningError: out of reach, in collision, or no path.
         """
         start = self.motions.start(q, terrain)
-        ctx = self.motions.context(q, terrain)
+        ctx = self.motions.context(q, terrain, SCOOP_LINK if request.get("guarded") else None)
         position = np.asarray(request["position"], dtype=np.float64)
         rotation = np.asarray(request["rotation"], dtype=np.float64)
         goal = self.planner.solve_ik(SCOOP_TIP_FRAME, position, rotation, start, ctx)

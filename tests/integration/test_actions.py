@@ -1,0 +1,287 @@
+"""OceanWATERS' arm actions (owl_msgs) served by ``arm_services``: results checked against the
+simulation, feedback rate, cancel and ArmStop holding the arm, the busy policy shared with the
+paper's services, and every bad goal field refused with the node staying up."""
+# ruff: noqa: E501  (the goal tables read best one case a line)
+
+from __future__ import annotations
+
+import threading
+import time
+
+import actionlib
+import numpy as np
+import pytest
+import rospy
+from actionlib_msgs.msg import GoalStatus
+from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
+from sensor_msgs.msg import JointState
+
+import owl_msgs.msg as owl
+from ow_lander.actions import quaternion_from_rotation
+from ow_lander.description import ARM_JOINTS, DEFAULT_GROUND_Z, SCOOP_TIP_FRAME, UNSTOWED
+from ow_lander.model import LanderModel
+from ow_mission.testing import set_terrain
+from ow_msgs.msg import GroundDetectorSignal, Operation
+from ow_msgs.srv import Unstow
+
+GROUND = DEFAULT_GROUND_Z
+NAN = float("nan")
+
+
+class JointLog:
+    """Every /joint_states sample: (stamp s sim, (6,) rad arm joints)."""
+
+    def __init__(self) -> None:
+        self.samples: list[tuple[float, np.ndarray]] = []
+        self.sub = rospy.Subscriber("/joint_states", JointState, self._on, queue_size=1000)
+
+    def _on(self, msg: JointState) -> None:
+        values = dict(zip(msg.name, msg.position, strict=False))
+        self.samples.append((msg.header.stamp.to_sec(), np.array([values[j] for j in ARM_JOINTS])))
+
+    def latest(self) -> np.ndarray:
+        """The newest sample once the log has caught up with the clock (callbacks may lag)."""
+        now = rospy.get_rostime().to_sec()
+        deadline = time.monotonic() + 10
+        while self.samples[-1][0] < now and time.monotonic() < deadline:
+            time.sleep(0.005)
+        return self.samples[-1][1]
+
+    def wait_sim(self, seconds: float) -> None:
+        start = self.samples[-1][0]
+        deadline = time.monotonic() + 60
+        while self.samples[-1][0] < start + seconds and time.monotonic() < deadline:
+            time.sleep(0.01)
+
+
+@pytest.fixture(scope="module")
+def stack(start_lander):
+    ros_stack = start_lander(sim_topics=["/joint_states", "/arm_end_effector_force_torque"])
+    return ros_stack
+
+
+@pytest.fixture(scope="module")
+def joints(stack):
+    log = JointLog()
+    deadline = time.monotonic() + 10
+    while not log.samples and time.monotonic() < deadline:
+        time.sleep(0.05)
+    yield log
+    log.sub.unregister()
+
+
+@pytest.fixture(scope="module")
+def model():
+    return LanderModel()
+
+
+def client(name: str) -> actionlib.SimpleActionClient:
+    c = actionlib.SimpleActionClient(name, getattr(owl, f"{name}Action"))
+    assert c.wait_for_server(rospy.Duration(30)), f"no {name} server"
+    return c
+
+
+def run(name: str, goal, feedback=None, timeout: float = 300.0):
+    """Send ``goal`` and wait: (state, result, status text)."""
+    c = client(name)
+    c.send_goal(goal, feedback_cb=feedback)
+    assert c.wait_for_result(rospy.Duration(timeout)), f"{name} did not end"
+    return c.get_state(), c.get_result(), c.get_goal_status_text()
+
+
+def tip(model, arm):
+    q = model.q_from(dict(zip(ARM_JOINTS, arm, strict=True)))
+    return model.fk(q, SCOOP_TIP_FRAME)
+
+
+def test_unstow_ends_at_the_unstowed_pose(stack, joints):
+    state, _, text = run("ArmUnstow", owl.ArmUnstowGoal())
+    assert state == GoalStatus.SUCCEEDED, text
+    assert np.allclose(joints.latest(), [UNSTOWED[j] for j in ARM_JOINTS], atol=0.02)
+
+
+def test_move_joints_result_and_feedback_rate(stack, joints):
+    target = [0.3, 1.4, -1.7, 0.2, 1.5707, 0.3]
+    stamps, angles = [], []
+
+    def on_feedback(fb):
+        stamps.append(rospy.get_rostime().to_sec())
+        angles.append(list(fb.angles))
+
+    state, result, text = run("ArmMoveJoints", owl.ArmMoveJointsGoal(False, target), on_feedback)
+    assert state == GoalStatus.SUCCEEDED, text
+    assert np.allclose(result.final_angles, target, atol=0.02)
+    assert np.allclose(result.final_angles, joints.latest(), atol=0.005)
+    assert len(stamps) > 10
+    rate = (len(stamps) - 1) / (stamps[-1] - stamps[0])
+    print(f"ArmMoveJoints feedback: {rate:.1f} Hz of sim time over {len(stamps)} messages")
+    assert rate >= 10.0
+    assert all(len(a) == 6 for a in angles)
+
+
+def test_move_joint_relative(stack, joints):
+    before = joints.latest().copy()
+    state, result, text = run("ArmMoveJoint", owl.ArmMoveJointGoal(True, 0, -0.2))
+    assert state == GoalStatus.SUCCEEDED, text
+    expected = before.copy()
+    expected[0] -= 0.2
+    assert np.allclose(result.final_angles, expected, atol=0.02)
+    assert np.allclose(joints.latest(), expected, atol=0.02)
+
+
+def test_move_cartesian_relative_in_base_link(stack, joints, model):
+    X0 = tip(model, joints.latest())
+    pose = Pose(Point(0.0, 0.0, -0.2), Quaternion(0, 0, 0, 1))
+    state, result, text = run("ArmMoveCartesian", owl.ArmMoveCartesianGoal(0, True, pose))
+    assert state == GoalStatus.SUCCEEDED, text
+    X = tip(model, joints.latest())
+    assert np.allclose(X[:3, 3], X0[:3, 3] + [0.0, 0.0, -0.2], atol=0.01)
+    p = result.final_pose.position
+    assert np.allclose([p.x, p.y, p.z], X[:3, 3], atol=0.01)
+
+
+def test_move_cartesian_absolute_pose(stack, joints, model):
+    X0 = tip(model, joints.latest())
+    target = X0[:3, 3] + [0.1, 0.0, 0.0]
+    q = quaternion_from_rotation(X0[:3, :3])
+    pose = Pose(Point(*target), Quaternion(*q))
+    state, result, text = run("ArmMoveCartesian", owl.ArmMoveCartesianGoal(0, False, pose))
+    assert state == GoalStatus.SUCCEEDED, text
+    X = tip(model, joints.latest())
+    assert np.allclose(X[:3, 3], target, atol=0.01)
+    o = result.final_pose.orientation
+    assert np.allclose(np.abs(np.dot([o.x, o.y, o.z, o.w], q)), 1.0, atol=1e-3)
+
+
+def test_find_surface_on_flat_ground(stack, joints):
+    set_terrain(stack, f"flat:{GROUND}")
+    goal = owl.ArmFindSurfaceGoal(
+        frame=0, relative=False, position=Point(1.7, 0.0, GROUND), normal=Vector3(0, 0, -1),
+        distance=0.2, overdrive=0.05, force_threshold=10.0, torque_threshold=10.0,
+    )  # fmt: skip
+    detector = []
+    sub = rospy.Subscriber("/arm/ground_detector", GroundDetectorSignal, detector.append)
+    try:
+        state, result, text = run("ArmFindSurface", goal)
+    finally:
+        sub.unregister()
+    assert state == GoalStatus.SUCCEEDED, text
+    assert result.final_pose.position.z == pytest.approx(GROUND, abs=0.005)
+    assert result.final_distance == pytest.approx(0.0, abs=0.01)
+    assert result.final_force > 0.0
+    deadline = time.monotonic() + 5  # this process's callbacks may lag the simulation
+    while not any(s.contact for s in detector) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert any(s.contact for s in detector)
+    assert {s.detector for s in detector} == {"force", "torque"}
+    # unstow for the next tests (lifts the scoop out of the ground first)
+    state, _, text = run("ArmUnstow", owl.ArmUnstowGoal())
+    assert state == GoalStatus.SUCCEEDED, text
+
+
+def test_find_surface_reports_no_surface(stack):
+    goal = owl.ArmFindSurfaceGoal(
+        frame=0, relative=False, position=Point(1.7, 0.0, GROUND + 0.25), normal=Vector3(0, 0, -1),
+        distance=0.1, overdrive=0.05, force_threshold=10.0, torque_threshold=10.0,
+    )  # fmt: skip
+    state, _, text = run("ArmFindSurface", goal)
+    assert state == GoalStatus.ABORTED
+    assert "No surface was found" in text
+
+
+def _long_move(joints):
+    """A goal turning the shoulder yaw by 1 rad (several seconds of sim time)."""
+    target = joints.latest().copy()
+    target[0] += 1.0 if target[0] < 0 else -1.0
+    return owl.ArmMoveJointsGoal(False, target.tolist()), target
+
+
+def _wait_active(c):
+    deadline = time.monotonic() + 60
+    while c.get_state() != GoalStatus.ACTIVE and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert c.get_state() == GoalStatus.ACTIVE
+
+
+def test_busy_both_ways(stack, joints):
+    stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
+    goal, _ = _long_move(joints)
+    c = client("ArmMoveJoints")
+    c.send_goal(goal)
+    _wait_active(c)
+    state, _, text = run("ArmUnstow", owl.ArmUnstowGoal(), timeout=30)
+    assert state == GoalStatus.REJECTED
+    assert text == "busy: ArmMoveJoints goal is running"
+    response = stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
+    assert not response.success
+    assert response.message == "busy: ArmMoveJoints goal is running; request refused"
+    assert c.wait_for_result(rospy.Duration(120))
+    assert c.get_state() == GoalStatus.SUCCEEDED
+    # A goal while a service request runs (once its START marker is out).
+    started = threading.Event()
+    sub = rospy.Subscriber(
+        "/arm/operation",
+        Operation,
+        lambda m: m.name == "unstow" and m.event == Operation.START and started.set(),
+    )
+    answer = []
+    call = threading.Thread(
+        target=lambda: answer.append(stack.service("/arm/unstow", Unstow)(delete_prev_traj=False))
+    )
+    call.start()
+    try:
+        assert started.wait(30)
+        state, _, text = run("ArmStow", owl.ArmStowGoal(), timeout=30)
+    finally:
+        call.join()
+        sub.unregister()
+    assert state == GoalStatus.REJECTED
+    assert text == "busy: /arm/unstow service is running"
+    assert answer[0].success, answer[0].message
+
+
+POSE_OK = Pose(Point(1.6, 0.0, 0.2), Quaternion(0, 0, 0, 1))
+BAD_GOALS = [
+    ("ArmMoveJoint", owl.ArmMoveJointGoal(False, 6, 0.1), "joint=6"),
+    ("ArmMoveJoint", owl.ArmMoveJointGoal(False, -1, 0.1), "joint=-1"),
+    ("ArmMoveJoint", owl.ArmMoveJointGoal(False, 0, NAN), "angle=nan"),
+    ("ArmMoveJoints", owl.ArmMoveJointsGoal(False, [0.0] * 5), "angles=["),
+    ("ArmMoveJoints", owl.ArmMoveJointsGoal(False, [0, 0, float("inf"), 0, 0, 0]), "angles[2]=inf"),
+    ("ArmMoveJointsGuarded", owl.ArmMoveJointsGuardedGoal(False, [0.0] * 6, 0.0, 1.0), "force_threshold=0.0"),
+    ("ArmMoveJointsGuarded", owl.ArmMoveJointsGuardedGoal(False, [0.0] * 6, 1.0, -1.0), "torque_threshold=-1.0"),
+    ("ArmMoveCartesian", owl.ArmMoveCartesianGoal(2, False, POSE_OK), "frame=2"),
+    ("ArmMoveCartesian", owl.ArmMoveCartesianGoal(0, False, Pose(Point(NAN, 0, 0), Quaternion(0, 0, 0, 1))), "pose.position.x=nan"),
+    ("ArmMoveCartesian", owl.ArmMoveCartesianGoal(0, False, Pose(Point(1.6, 0, 0.2), Quaternion(0, 0, 0, 0))), "pose.orientation="),
+    ("ArmMoveCartesianGuarded", owl.ArmMoveCartesianGuardedGoal(0, False, POSE_OK, 10.0, 0.0), "torque_threshold=0.0"),
+    ("ArmFindSurface", owl.ArmFindSurfaceGoal(0, False, Point(1.7, 0, GROUND), Vector3(0, 0, 0), 0.2, 0.05, 10, 10), "normal="),
+    ("ArmFindSurface", owl.ArmFindSurfaceGoal(-1, False, Point(1.7, 0, GROUND), Vector3(0, 0, -1), 0.2, 0.05, 10, 10), "frame=-1"),
+    ("ArmFindSurface", owl.ArmFindSurfaceGoal(0, False, Point(1.7, 0, GROUND), Vector3(0, 0, -1), 0.2, 0.05, NAN, 10), "force_threshold=nan"),
+    ("TaskGrind", owl.TaskGrindGoal(1.65, 0.0, NAN, 0.6, 1.0, GROUND), "depth=nan"),
+    ("TaskScoopLinear", owl.TaskScoopLinearGoal(3, False, Point(1.46, 0, GROUND), 0.01, 0.1), "frame=3"),
+    ("TaskDiscardSample", owl.TaskDiscardSampleGoal(0, False, Point(1.5, 0.8, GROUND), -0.3), "height=-0.3"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("name", "goal", "named"), BAD_GOALS, ids=[b[2] for b in BAD_GOALS])
+def test_bad_goal_is_refused_naming_the_field(stack, name, goal, named):
+    state, _, text = run(name, goal, timeout=30)
+    assert state == GoalStatus.REJECTED
+    assert named in text
+
+
+UNREACHABLE = [
+    ("ArmMoveJoints", owl.ArmMoveJointsGoal(False, [0.0, 3.0, -1.5707, 0.0, 1.5707, 0.0]), "j_shou_pitch=3.000"),
+    ("ArmMoveCartesian", owl.ArmMoveCartesianGoal(0, False, Pose(Point(5.0, 0, 0.2), Quaternion(0, 0, 0, 1))), "ArmMoveCartesian failed"),
+    ("ArmMoveCartesian", owl.ArmMoveCartesianGoal(0, False, Pose(Point(1.7, 0, GROUND - 0.3), Quaternion(0, 0, 0, 1))), "ArmMoveCartesian failed"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("name", "goal", "named"), UNREACHABLE, ids=[u[2] for u in UNREACHABLE])
+def test_unreachable_goal_is_aborted_and_the_next_works(stack, joints, name, goal, named):
+    before = joints.latest().copy()
+    state, _, text = run(name, goal, timeout=60)
+    assert state == GoalStatus.ABORTED
+    assert named in text
+    assert np.allclose(joints.latest(), before, atol=0.01)
+    state, _, text = run("ArmUnstow", owl.ArmUnstowGoal())
+    assert state == GoalStatus.SUCCEEDED, text

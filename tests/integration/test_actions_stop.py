@@ -1,0 +1,103 @@
+"""Cancelling an action and ArmStop: the arm stops within 0.2 s of simulation time and holds
+where it stopped (drift < 1 mrad over 2 s). The simulation runs in real time here: at tens of
+times real time, the few milliseconds a cancel request takes to reach the node are already
+more than 0.2 s of simulation time."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+import rospy
+from actionlib_msgs.msg import GoalStatus
+from test_actions import JointLog, client, run
+
+import owl_msgs.msg as owl
+from ow_msgs.srv import Unstow
+
+
+@pytest.fixture(scope="module")
+def stack(start_lander):
+    return start_lander(sim={"real_time_factor": 1.0})
+
+
+@pytest.fixture(scope="module")
+def joints(stack):
+    log = JointLog()
+    deadline = time.monotonic() + 10
+    while not log.samples and time.monotonic() < deadline:
+        time.sleep(0.05)
+    yield log
+    log.sub.unregister()
+
+
+def _long_move(joints):
+    """A goal turning the shoulder yaw by 0.6 rad (about 5 s)."""
+    target = joints.latest().copy()
+    target[0] += 0.6 if target[0] < 0 else -0.6
+    return owl.ArmMoveJointsGoal(False, target.tolist()), target
+
+
+def _halfway(c, joints, start, target):
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        done = abs(joints.latest()[0] - start[0]) / abs(target[0] - start[0])
+        if done > 0.5:
+            return
+        time.sleep(0.002)
+    pytest.fail("the move never got half-way")
+
+
+def _check_held(joints, t_stop):
+    """(stop latency s sim: from the request until the arm is within 0.5 mrad of where it
+    rests, drift rad over the 2 s of sim time after that, s of samples after it)."""
+    joints.wait_sim(2.5)
+    final = joints.latest()
+    after = [(t, q) for t, q in joints.samples if t >= t_stop]
+    far = [t for t, q in after if np.max(np.abs(q - final)) > 5e-4]
+    settled = far[-1] if far else t_stop
+    held = [q for t, q in after if settled <= t <= settled + 2.0]
+    drift = max(float(np.max(np.abs(q - held[0]))) for q in held)
+    return settled - t_stop, drift, after[-1][0] - settled
+
+
+def test_cancel_halfway_holds_the_arm(stack, joints):
+    stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
+    start = joints.latest().copy()
+    goal, target = _long_move(joints)
+    c = client("ArmMoveJoints")
+    c.send_goal(goal)
+    _halfway(c, joints, start, target)
+    t_cancel = rospy.get_rostime().to_sec()
+    c.cancel_goal()
+    assert c.wait_for_result(rospy.Duration(30))
+    assert c.get_state() == GoalStatus.PREEMPTED, c.get_goal_status_text()
+    latency, drift, span = _check_held(joints, t_cancel)
+    print(f"cancel: stopped {latency:.3f} s sim after the request; drift {drift * 1e3:.3f} mrad")
+    assert latency < 0.2
+    assert span >= 2.0
+    assert drift < 1e-3
+    assert np.allclose(c.get_result().final_angles, joints.latest(), atol=2e-3)
+    assert 0.2 < abs(joints.latest()[0] - start[0]) < 0.5
+
+
+def test_arm_stop_stops_a_goal_and_aborts_when_idle(stack, joints):
+    stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
+    start = joints.latest().copy()
+    goal, target = _long_move(joints)
+    c = client("ArmMoveJoints")
+    c.send_goal(goal)
+    _halfway(c, joints, start, target)
+    t_stop = rospy.get_rostime().to_sec()
+    state, _, text = run("ArmStop", owl.ArmStopGoal(), timeout=30)
+    assert state == GoalStatus.SUCCEEDED, text
+    assert c.wait_for_result(rospy.Duration(30))
+    assert c.get_state() == GoalStatus.PREEMPTED
+    latency, drift, _ = _check_held(joints, t_stop)
+    print(f"ArmStop: stopped {latency:.3f} s sim after the request; drift {drift * 1e3:.3f} mrad")
+    assert latency < 0.2
+    assert drift < 1e-3
+    state, _, text = run("ArmStop", owl.ArmStopGoal(), timeout=30)
+    assert state == GoalStatus.ABORTED
+    assert "nothing to stop" in text
