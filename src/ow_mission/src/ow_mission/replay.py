@@ -287,7 +287,7 @@ def make_replay(
             lines.append(
                 f"{step_at(steps, float(t))}   t = {t - t0:6.1f} s sim   frame {i + 1}/{len(times)}"
             )
-            images.append(captioned(scene.render(camera), lines, font))
+            images.append(captioned(scene.render(camera, shadow=False), lines, font))
             if on_frame is not None:
                 on_frame(i, len(times))
     images[0].save(
