@@ -110,3 +110,10 @@ def test_a_path_that_cannot_be_drawn_says_why(model, joints, frame, message):
 def test_an_empty_trajectory_is_refused():
     with pytest.raises(SceneError, match="no points"):
         trajectory_arrays(JointTrajectory(joint_names=["j_shou_yaw"]))
+
+
+@pytest.mark.parametrize("launch", sorted((CONFIG_FILE.parents[1] / "launch").glob("*.launch")))
+def test_the_launch_files_are_well_formed_xml(launch):
+    import xml.etree.ElementTree as ET
+
+    assert ET.parse(launch).getroot().tag == "launch"
