@@ -5,6 +5,7 @@ paper's services, and every bad goal field refused with the node staying up."""
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
 
@@ -56,8 +57,8 @@ class JointLog:
 
 @pytest.fixture(scope="module")
 def stack(start_lander):
-    ros_stack = start_lander(sim_topics=["/joint_states", "/arm_end_effector_force_torque"])
-    return ros_stack
+    client.cache_clear()  # the clients of another module's servers
+    return start_lander(sim_topics=["/joint_states", "/arm_end_effector_force_torque"])
 
 
 @pytest.fixture(scope="module")
@@ -75,9 +76,13 @@ def model():
     return LanderModel()
 
 
+@functools.cache
 def client(name: str) -> actionlib.SimpleActionClient:
+    """One client per action for the whole module: actionlib's wait_for_server does not wait
+    for the server's result topic to reach a new client, whose first result may be lost."""
     c = actionlib.SimpleActionClient(name, getattr(owl, f"{name}Action"))
     assert c.wait_for_server(rospy.Duration(30)), f"no {name} server"
+    time.sleep(0.5)
     return c
 
 
@@ -142,7 +147,7 @@ def test_move_cartesian_relative_in_base_link(stack, joints, model):
 
 def test_move_cartesian_absolute_pose(stack, joints, model):
     X0 = tip(model, joints.latest())
-    target = X0[:3, 3] + [0.1, 0.0, 0.0]
+    target = X0[:3, 3] + [0.0, 0.0, 0.1]
     q = quaternion_from_rotation(X0[:3, :3])
     pose = Pose(Point(*target), Quaternion(*q))
     state, result, text = run("ArmMoveCartesian", owl.ArmMoveCartesianGoal(0, False, pose))

@@ -19,6 +19,7 @@ from ow_msgs.srv import Unstow
 
 @pytest.fixture(scope="module")
 def stack(start_lander):
+    client.cache_clear()  # the clients of another module's servers
     return start_lander(sim={"real_time_factor": 1.0})
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import Point, Pose, Quaternion
-from test_actions import JointLog, run, tip
+from test_actions import JointLog, client, run, tip
 
 import owl_msgs.msg as owl
 from ow_lander.actions import quaternion_from_rotation
@@ -28,6 +28,7 @@ GROUND = DEFAULT_GROUND_Z
 
 @pytest.fixture(scope="module")
 def stack(start_lander):
+    client.cache_clear()  # the clients of another module's servers
     return start_lander(sim_topics=["/joint_states", "/arm_end_effector_force_torque"])
 
 
