@@ -591,7 +591,8 @@ def plot_power(
         fontsize=10,
     )
     ax.grid(alpha=0.3)
-    ax.legend(loc="lower right", fontsize=8, framealpha=0.9)
+    # Below the axes: inside, it hid the data wherever it was put.
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=3, fontsize=8)
     stack_labels(fig, ax, texts)
     fig.tight_layout()
     fig.savefig(png_path)
