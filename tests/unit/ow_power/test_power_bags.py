@@ -329,3 +329,20 @@ def test_a_header_stamp_of_zero_takes_the_arrival_time():
     assert record_time_ns(msgdef, data, 123) == 123
     with pytest.raises(RecorderError, match="a message of 3 bytes cannot start with a Header"):
         record_time_ns(msgdef, b"abc", 1)
+
+
+def test_a_late_latched_message_is_read_after_the_repeated_one(tmp_path):
+    import rosbag
+
+    m = BagMessages()
+    writer = SplitBagWriter(tmp_path, split_duration_s=1.0, start=START)
+    ros1_type, md5, msgdef, old = m.serialize("std_msgs/msg/String", data="old terrain")
+    writer.write("/sim/terrain", ros1_type, md5, msgdef, 10**9, old, True, "/sim")
+    value = m.serialize("std_msgs/msg/Float64", data=1.0)
+    writer.write("/x", *value[:3], 3 * 10**9, value[3])  # opens file 1: "old terrain" repeated
+    new = m.serialize("std_msgs/msg/String", data="new terrain")[3]
+    writer.write("/sim/terrain", ros1_type, md5, msgdef, 2 * 10**9, new, True, "/sim")  # late
+    bags = writer.close()
+    with rosbag.Bag(str(bags[-1])) as bag:
+        terrains = [(msg.data, t.to_nsec()) for _, msg, t in bag.read_messages("/sim/terrain")]
+    assert terrains == [("old terrain", 3 * 10**9), ("new terrain", 3 * 10**9)]

@@ -178,6 +178,8 @@ class SplitBagWriter:
         self._connections: dict[tuple[str, str, str, str, bool], Connection] = {}
         #: The last message of each latched (topic, publisher), repeated in every new file.
         self._latched: dict[tuple[str, str], _Message] = {}
+        #: ns, bag time of the latched messages repeated at the start of the open file (0: none).
+        self._repeated_ns = 0
         self._file_start_ns = 0
         self._file_bytes = 0
         self._closed = False
@@ -210,7 +212,9 @@ class SplitBagWriter:
             data: the message in ROS 1 wire format.
             latching: the publisher latches the topic (connection header ``latching: 1``): the
                 connection is flagged so, and the message is repeated at the start of each
-                later file until the same publisher sends another.
+                later file until the same publisher sends another. A latched message stamped
+                before the repeated copies of the open file is written at their time, after
+                them, so that reading a file in time order ends with the latest state.
             callerid: the publishing node (connection header ``callerid``); "" leaves it out.
 
         Returns:
@@ -231,6 +235,11 @@ class SplitBagWriter:
                 for repeated in self._latched.values():
                     if (repeated.topic, repeated.callerid) != (topic, callerid):
                         self._append(repeated, stamp_ns)
+                        self._repeated_ns = stamp_ns
+            if latching:
+                # A latched message stamped before this file's repeated copies is newer than
+                # they are: it must not be read back before them.
+                stamp_ns = max(stamp_ns, self._repeated_ns)
             if self._file_start_ns == 0:
                 # Stamp 0 means the simulation clock had not started: the window opens later.
                 self._file_start_ns = stamp_ns
@@ -299,6 +308,7 @@ class SplitBagWriter:
             raise RecorderError(msg) from exc
         self._writer = writer
         self._connections = {}
+        self._repeated_ns = 0
         self._file_start_ns = stamp_ns
         self._file_bytes = 0
         self._index += 1
