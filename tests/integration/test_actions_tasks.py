@@ -83,7 +83,8 @@ def test_guarded_joint_move_stops_on_the_ground(stack, joints, model):
     above = [SCOOP_ABOVE_GROUND[j] for j in ARM_JOINTS]
     _ok("ArmMoveJoints", owl.ArmMoveJointsGoal(False, above))
     below = [SCOOP_BELOW_GROUND[j] for j in ARM_JOINTS]
-    result = _ok("ArmMoveJointsGuarded", owl.ArmMoveJointsGuardedGoal(False, below, 20.0, 20.0))
+    result = _ok("ArmMoveJointsGuarded", owl.ArmMoveJointsGuardedGoal(False, below, 10.0, 10.0))
+    joints.wait_sim(1.0)  # back at, and holding, the breach position
     z = tip(model, joints.latest())[2, 3]
     assert GROUND - 0.02 < z < GROUND + 0.01  # stopped at the surface, not 5 cm under it
     assert not np.allclose(result.final_angles, below, atol=0.02)
@@ -98,8 +99,9 @@ def test_guarded_cartesian_move_stops_on_the_ground(stack, joints, model):
     target = Pose(
         Point(*(X[:3, 3] - [0.0, 0.0, 0.1])), Quaternion(*quaternion_from_rotation(X[:3, :3]))
     )
-    goal = owl.ArmMoveCartesianGuardedGoal(0, False, target, 20.0, 20.0)
+    goal = owl.ArmMoveCartesianGuardedGoal(0, False, target, 10.0, 10.0)
     result = _ok("ArmMoveCartesianGuarded", goal)
+    joints.wait_sim(1.0)
     p = result.final_pose.position
     assert GROUND - 0.02 < p.z < GROUND + 0.01
     assert np.allclose([p.x, p.y, p.z], tip(model, joints.latest())[:3, 3], atol=0.01)

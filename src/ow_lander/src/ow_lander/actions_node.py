@@ -176,7 +176,7 @@ class ArmActions:
         result = executor.execute(trajectory, request.wrench_limits, feedback)
         success, message = self._outcome(name, request, result)
         message = "; ".join([f"{message} ({path.name})", *request.notes])
-        values = self._result(name, request)
+        values = self._result(name, request, result.hold)
         if result.stopped:
             handle.set_canceled(values, message)
         elif success:
@@ -193,7 +193,7 @@ class ArmActions:
             return False, f"No surface was found: {result.message}"
         if not result.success:
             return False, result.message
-        if request.target_pose is not None and not result.ground_found:
+        if request.target_pose is not None and result.hold is None:
             state = self._state()
             distance, angle = pose_error(request.target_pose, state.X_base_tip)
             if distance > CARTESIAN_TOLERANCE[0] or angle > CARTESIAN_TOLERANCE[1]:
@@ -203,14 +203,18 @@ class ArmActions:
                 )
         return True, result.message
 
-    def _state(self) -> Any:
+    def _state(self, hold: dict[str, float] | None = None) -> Any:
         executor = self.node.executor
-        return arm_state(self.node.model, executor.current_joints(), *executor.wrench())
+        joints = {**executor.current_joints(), **(hold or {})}
+        return arm_state(self.node.model, joints, *executor.wrench())
 
-    def _result(self, name: str, request: ActionRequest | None) -> Any:
-        """The result message of ``name`` filled with where the arm is now."""
+    def _result(
+        self, name: str, request: ActionRequest | None, hold: dict[str, float] | None = None
+    ) -> Any:
+        """The result message of ``name`` filled with where the arm is now (or is held, when
+        a stop or a guard ended the move)."""
         point = None if request is None else request.surface_point
-        values = action_values(self._state(), point)
+        values = action_values(self._state(hold), point)
         return conv.fill_fields(getattr(owl, f"{name}Result")(), values)
 
     def _feedback(

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import genpy
 import numpy as np
-from geometry_msgs.msg import Point, Pose, Quaternion
+from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ow_lander.description import BASE_FRAME
@@ -152,8 +152,8 @@ def goal_to_dict(goal: Any, prefix: str = "") -> dict[str, Any]:
 
 
 def fill_fields(msg: Any, values: Mapping[str, Any]) -> Any:
-    """Set the fields of ``msg`` (an action result or feedback) that ``values`` has: floats,
-    lists, Points ((3,) m) and Poses (((3,) m, (4,) x y z w))."""
+    """Set the fields of ``msg`` (an action goal, result or feedback) that ``values`` has:
+    numbers, lists, Points and Vector3s ((3,)) and Poses (((3,) m, (4,) x y z w))."""
     for name, kind in zip(msg.__slots__, msg._slot_types, strict=True):
         if name not in values:
             continue
@@ -162,5 +162,7 @@ def fill_fields(msg: Any, values: Mapping[str, Any]) -> Any:
             value = Pose(Point(*value[0]), Quaternion(*value[1]))
         elif kind == "geometry_msgs/Point":
             value = Point(*value)
+        elif kind == "geometry_msgs/Vector3":
+            value = Vector3(*value)
         setattr(msg, name, value)
     return msg

@@ -62,6 +62,8 @@ class ExecutionResult:
         reports_ground: a guarded descent ended (found or not): the node publishes
             ``/guarded_move_result`` once.
         contact_time: s (simulation time) of the contact, or None.
+        stopped: ended by a stop request (a cancelled action, ArmStop).
+        hold: rad by joint name, where the arm was told to hold at the end, or None.
     """
 
     success: bool
@@ -72,6 +74,7 @@ class ExecutionResult:
     reports_ground: bool = False
     contact_time: float | None = None
     stopped: bool = False
+    hold: dict[str, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -421,8 +424,8 @@ class ExecutionMonitor:
             f"stopped on request at t={self.stop_time - self.t_start:.2f} s, at rest "
             f"{stamp - self.stop_time:.2f} s later"
         )
-        result = ExecutionResult(False, message, t, stopped=True)
-        return Decision(None, _by_name(names, here), result)
+        rest = _by_name(names, here)
+        return Decision(None, rest, ExecutionResult(False, message, t, stopped=True, hold=rest))
 
     def _contact(self, here: FloatArray, t: float) -> Decision:
         """Ground found: hold where the arm was at the contact stamp. The simulation may have
@@ -440,7 +443,9 @@ class ExecutionMonitor:
             hold = np.array([q_contact[self.model.index(j)] for j in self.trajectory.joints])
         wrench = guard.wrench_detector
         found = ExecutionResult(True, "ground found" if wrench is None else wrench.describe(), t)
-        return Decision(None, _by_name(self.trajectory.joints, hold), self._finished(found))
+        result = self._finished(found)
+        result.hold = _by_name(self.trajectory.joints, hold)
+        return Decision(None, result.hold, result)
 
     def _finished(self, result: ExecutionResult) -> ExecutionResult:
         """A successful end; for a guarded descent, ground found or not found."""

@@ -54,6 +54,8 @@ class MissionConfig:
         output_dir: where ``<timestamp>/`` run directories go (relative to the workspace).
         renders: take headless renders of the arm at key moments.
         node_params: extra private parameters per node name (sim, arm_services, power, record).
+        interface: "services" (the paper's) or "actions" (OceanWATERS' owl_msgs actions,
+            :mod:`ow_mission.action_steps`): how the steps are called.
     """
 
     name: str = "sample collection"
@@ -77,6 +79,7 @@ class MissionConfig:
     output_dir: str = "runs"
     renders: bool = True
     node_params: dict[str, dict[str, Any]] = field(default_factory=dict)
+    interface: str = "services"
 
     @classmethod
     def from_dict(cls, raw: Mapping[str, Any]) -> MissionConfig:
@@ -148,6 +151,7 @@ class MissionConfig:
             output_dir=p.string("output_dir", d.output_dir),
             renders=p.boolean("renders", d.renders),
             node_params={str(k): dict(v) for k, v in node_params.items()},
+            interface=p.string("interface", d.interface, choices=("services", "actions")),
         )
         p.finish()
         return config

@@ -22,6 +22,7 @@ from std_srvs.srv import Trigger
 import ow_msgs.srv
 from ow_lander.conversions import height_map_from_msg
 from ow_lander.terrain import HeightMap
+from ow_mission.action_client_node import ActionStepClient
 from ow_mission.errors import ConfigError
 from ow_mission.mission import (
     RENDER_AFTER,
@@ -70,6 +71,7 @@ class MissionRunner:
         self._joint_stamp = 0.0
         self._terrain: HeightMap | None = None
         self._lock = threading.Lock()
+        self._actions = ActionStepClient(config.dig) if config.interface == "actions" else None
 
     def _render_step(self, label: str) -> None:
         with self._lock:
@@ -176,21 +178,22 @@ class MissionRunner:
             fields = step.request(c, ground)
             result = StepResult(step.name, service, fields)
             self.report.steps.append(result)
-            proxy = rospy.ServiceProxy(service, getattr(ow_msgs.srv, srv_name))
             # The simulation runs only during the steps: what the mission does in between
             # (energies, renders) neither adds sim time nor competes with it for the CPU.
             result.sim_start_s = self._clock
             self._sim_clock("resume", between_steps=True)
             wall0 = time.monotonic()
             try:
-                response = call_with_timeout(proxy, fields, c.step_timeout_s)
+                if self._actions is not None:
+                    response: Any = self._actions.call(step.name, fields, c.step_timeout_s)
+                else:
+                    proxy = rospy.ServiceProxy(service, getattr(ow_msgs.srv, srv_name))
+                    response = call_with_timeout(proxy, fields, c.step_timeout_s)
             except (rospy.ServiceException, TypeError) as exc:
                 result.message = f"service call failed: {exc}"
                 response = None
             except TimeoutError:
-                result.message = (
-                    f"no answer within step_timeout_s = {c.step_timeout_s:g} s of wall time"
-                )
+                result.message = f"no answer within step_timeout_s = {c.step_timeout_s:g} s (wall)"
                 response = None
             result.wall_time_s = time.monotonic() - wall0
             self._sim_clock("pause", between_steps=True)
