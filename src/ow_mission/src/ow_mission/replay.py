@@ -191,6 +191,7 @@ class ReplayResult:
         width: px.
         height: px.
         seconds: s of wall time to make it.
+        cpu_seconds: s of CPU time of this process to make it (the cost on a shared machine).
         sim_span_s: s of simulation time it covers.
     """
 
@@ -200,6 +201,7 @@ class ReplayResult:
     width: int
     height: int
     seconds: float
+    cpu_seconds: float
     sim_span_s: float
 
 
@@ -264,7 +266,7 @@ def make_replay(
     """
     from ow_mission.render import SceneRenderer, fit_camera, scene_points, visible_terrain
 
-    wall0 = time.monotonic()
+    wall0, cpu0 = time.monotonic(), time.process_time()
     t0, t1 = float(recording.joint_t[0]), float(recording.joint_t[-1])
     times = frame_times(t0, t1, max_frames, min_step_s=0.1)
     font = caption_font(max(12, height // 26))
@@ -299,5 +301,12 @@ def make_replay(
         optimize=False,
     )
     return ReplayResult(
-        path, len(images), fps, images[0].width, images[0].height, time.monotonic() - wall0, t1 - t0
+        path,
+        len(images),
+        fps,
+        images[0].width,
+        images[0].height,
+        time.monotonic() - wall0,
+        time.process_time() - cpu0,
+        t1 - t0,
     )

@@ -256,13 +256,15 @@ def replay_figure(
         "width": result.width,
         "height": result.height,
         "seconds_to_make": result.seconds,
+        "cpu_seconds_to_make": result.cpu_seconds,
         "sim_span_s": result.sim_span_s,
     }
     figures.files["replay"] = "replay.gif"
     figures.captions["replay"] = (
         f"The whole mission replayed from /joint_states and /sim/terrain: {result.frames} frames "
         f"at {result.fps:g} frames/s over {result.sim_span_s:.0f} s of simulated time, "
-        f"{result.width}x{result.height} px (made in {result.seconds:.1f} s)."
+        f"{result.width}x{result.height} px (made in {result.seconds:.1f} s, "
+        f"{result.cpu_seconds:.1f} s of CPU)."
     )
     return None
 
