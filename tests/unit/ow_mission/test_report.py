@@ -226,6 +226,20 @@ def test_the_dig_verdict_comes_from_the_profile(run_dir):
     assert "The dig worked" in (run_dir / "report.md").read_text()
 
 
+def test_a_mission_stopped_before_the_grind_has_no_trench_verdict(tmp_path):
+    _write_bags(tmp_path / "bags")
+    document = _document()
+    document["steps"] = document["steps"][:2]
+    document["success"] = False
+    write_run_report(tmp_path, document, renders=False)
+    markdown = (tmp_path / "report.md").read_text()
+    assert "trench_profile.png" not in image_links(markdown)
+    assert "dig worked" not in markdown and "did NOT reach" not in markdown
+    assert "stopped before the grind" in markdown
+    for link in image_links(markdown):
+        assert (tmp_path / link).is_file(), link
+
+
 @pytest.mark.parametrize(
     ("depth", "worked"),
     [(0.16, True), (0.10, True), (0.10 - DEPTH_TOLERANCE_M + 1e-4, True), (0.05, False)],

@@ -128,6 +128,8 @@ def trench_figure(
     """``trench_profile.png`` and ``document['trench']``; a note when it cannot be made."""
     from ow_mission.plots import plot_trench, trench_profile
 
+    if not any(s["step"] == "grind" for s in document["steps"]):
+        return "the mission stopped before the grind: no trench to profile."
     if not recording.terrains:
         return "no /sim/terrain in the bags: no trench profile."
     before, after = recording.terrains[0][1], recording.terrains[-1][1]
