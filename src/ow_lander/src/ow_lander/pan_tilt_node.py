@@ -1,0 +1,203 @@
+"""ROS wiring of the antenna mast's actions (see :mod:`ow_lander.pan_tilt`)."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from typing import Any
+
+import actionlib
+import numpy as np
+import rospy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+
+from ow_lander.description import ANTENNA_JOINTS
+from ow_lander.errors import GoalError
+from ow_lander.pan_tilt import AntennaPointing, check_joints_goal, reached
+from owl_msgs.msg import (
+    PanTiltMoveCartesianAction,
+    PanTiltMoveCartesianResult,
+    PanTiltMoveJointsAction,
+    PanTiltMoveJointsFeedback,
+    PanTiltMoveJointsResult,
+)
+
+#: Hz of sim time, feedback and arrival checks.
+FEEDBACK_HZ = 20.0
+#: s of sim time a move may take before it is aborted (OceanWATERS: 30 s).
+MOVE_TIMEOUT_S = 30.0
+#: s of wall time to wait for a first /joint_states.
+JOINT_STATE_WAIT_S = 5.0
+
+PAN_COMMAND = "/ant_pan_position_controller/command"
+TILT_COMMAND = "/ant_tilt_position_controller/command"
+
+
+class PanTiltNode:
+    """The ``pan_tilt`` node: OceanWATERS' antenna mast actions on the simulation's position
+    controllers. One goal at a time: a new goal to the same action preempts the running one, a
+    goal to the other action while one runs is aborted.
+
+    Action servers (owl_msgs):
+        PanTiltMoveJoints: goal pan, tilt rad (|pan| <= 3.2, |tilt| <= 1.56); succeeds when both
+            joints are within 0.05 rad of it; feedback and result pan_position, tilt_position rad,
+            feedback at 20 Hz of sim time.
+        PanTiltMoveCartesian: goal frame (0 base_link, 1 tool = l_scoop_tip) and point m; points
+            the stereo camera's axis through the point (pan/tilt from the URDF's kinematics).
+        A cancel stops the mast where it is and holds it (preempted); a move not done within 30 s
+        of sim time is stopped and aborted. Bad goals (NaN/inf, beyond a limit, unknown frame)
+        are aborted at once with a status text naming the field, its value and the limit.
+
+    Subscriptions:
+        /joint_states (sensor_msgs/JointState): the mast's joints (and the arm's for frame 1), by
+            name.
+
+    Publications:
+        /ant_pan_position_controller/command, /ant_tilt_position_controller/command
+            (std_msgs/Float64): rad, the joints' set-points.
+    """
+
+    def __init__(self) -> None:
+        self.pointing = AntennaPointing()
+        self.model = self.pointing.model
+        self._lock = threading.Lock()
+        self._state: JointState | None = None
+        self._busy = threading.Lock()
+        self._pan = rospy.Publisher(PAN_COMMAND, Float64, queue_size=10)
+        self._tilt = rospy.Publisher(TILT_COMMAND, Float64, queue_size=10)
+        rospy.Subscriber("/joint_states", JointState, self._on_joint_state, queue_size=1)
+        self.joints_server = actionlib.SimpleActionServer(
+            "PanTiltMoveJoints", PanTiltMoveJointsAction, self._on_joints, auto_start=False
+        )
+        self.cartesian_server = actionlib.SimpleActionServer(
+            "PanTiltMoveCartesian", PanTiltMoveCartesianAction, self._on_cartesian, auto_start=False
+        )
+        self.joints_server.start()
+        self.cartesian_server.start()
+
+    def _on_joint_state(self, msg: JointState) -> None:
+        with self._lock:
+            self._state = msg
+
+    def _configuration(self) -> np.ndarray | None:
+        """(9,) rad, the latest joint state by name (waits a little for a first one)."""
+        deadline = rospy.get_rostime().to_sec() + JOINT_STATE_WAIT_S
+        rate = rospy.Rate(FEEDBACK_HZ)
+        while True:
+            with self._lock:
+                state = self._state
+            if state is not None:
+                known = set(self.model.joint_names)
+                values = {
+                    n: p for n, p in zip(state.name, state.position, strict=False) if n in known
+                }
+                return self.model.q_from(values)
+            if rospy.get_rostime().to_sec() > deadline or rospy.is_shutdown():
+                return None
+            rate.sleep()
+
+    def _antenna(self, q: np.ndarray) -> tuple[float, float]:
+        return float(q[self.model.index(ANTENNA_JOINTS[0])]), float(
+            q[self.model.index(ANTENNA_JOINTS[1])]
+        )
+
+    # ------------------------------------------------------------------ goals
+    def _on_joints(self, goal: Any) -> None:
+        server = self.joints_server
+
+        def result(pan: float, tilt: float) -> PanTiltMoveJointsResult:
+            return PanTiltMoveJointsResult(pan_position=pan, tilt_position=tilt)
+
+        def feedback(pan: float, tilt: float) -> None:
+            server.publish_feedback(PanTiltMoveJointsFeedback(pan_position=pan, tilt_position=tilt))
+
+        self._run(server, lambda _: check_joints_goal(goal.pan, goal.tilt), result, feedback)
+
+    def _on_cartesian(self, goal: Any) -> None:
+        def target(q: np.ndarray) -> tuple[float, float]:
+            point = (goal.point.x, goal.point.y, goal.point.z)
+            return self.pointing.look_at(self.pointing.to_base(goal.frame, point, q), q)
+
+        self._run(
+            self.cartesian_server, target, lambda *_: PanTiltMoveCartesianResult(), lambda *_: None
+        )
+
+    def _run(
+        self,
+        server: actionlib.SimpleActionServer,
+        target: Callable[[np.ndarray], tuple[float, float]],
+        result: Callable[[float, float], Any],
+        feedback: Callable[[float, float], None],
+    ) -> None:
+        """Check the goal, command it and watch the joints until they arrive, a cancel, the
+        timeout or a shutdown."""
+        if not self._busy.acquire(blocking=False):
+            server.set_aborted(result(0.0, 0.0), "another pan/tilt goal is running")
+            return
+        try:
+            self._move(server, target, result, feedback)
+        finally:
+            self._busy.release()
+
+    def _move(
+        self,
+        server: actionlib.SimpleActionServer,
+        target: Callable[[np.ndarray], tuple[float, float]],
+        result: Callable[[float, float], Any],
+        feedback: Callable[[float, float], None],
+    ) -> None:
+        q = self._configuration()
+        if q is None:
+            server.set_aborted(result(0.0, 0.0), "no /joint_states: the mast's state is unknown")
+            return
+        try:
+            goal = target(q)
+        except GoalError as error:
+            rospy.logwarn(f"pan_tilt: goal refused: {error}")
+            server.set_aborted(result(*self._antenna(q)), f"goal refused: {error}")
+            return
+        self._command(*goal)
+        deadline = rospy.get_rostime().to_sec() + MOVE_TIMEOUT_S
+        rate = rospy.Rate(FEEDBACK_HZ)
+        while not rospy.is_shutdown():
+            q = self._configuration()
+            pan, tilt = self._antenna(q) if q is not None else (np.nan, np.nan)
+            if server.is_preempt_requested():
+                self._command(pan, tilt)
+                server.set_preempted(
+                    result(pan, tilt), f"stopped at pan {pan:.3f}, tilt {tilt:.3f} rad"
+                )
+                return
+            feedback(pan, tilt)
+            if reached(pan, tilt, goal):
+                text = f"reached pan {pan:.3f}, tilt {tilt:.3f} rad"
+                server.set_succeeded(
+                    result(pan, tilt), f"{text} (goal {goal[0]:.3f}, {goal[1]:.3f})"
+                )
+                return
+            if rospy.get_rostime().to_sec() > deadline:
+                self._command(pan, tilt)
+                text = (
+                    f"pan/tilt did not reach ({goal[0]:.3f}, {goal[1]:.3f}) rad within "
+                    f"{MOVE_TIMEOUT_S:.0f} s: stopped at pan {pan:.3f}, tilt {tilt:.3f} rad"
+                )
+                server.set_aborted(result(pan, tilt), text)
+                return
+            try:
+                rate.sleep()
+            except rospy.ROSInterruptException:
+                break
+        server.set_aborted(result(np.nan, np.nan), "shutting down")
+
+    def _command(self, pan: float, tilt: float) -> None:
+        self._pan.publish(Float64(pan))
+        self._tilt.publish(Float64(tilt))
+
+
+def main() -> None:
+    """Entry point of ``rosrun ow_lander pan_tilt``."""
+    rospy.init_node("pan_tilt")
+    PanTiltNode()
+    rospy.loginfo("pan_tilt: PanTiltMoveJoints and PanTiltMoveCartesian ready")
+    rospy.spin()

@@ -1,0 +1,122 @@
+"""The antenna mast's goals and look-at solution (no ROS), checked with forward kinematics."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ow_lander.description import UNSTOWED
+from ow_lander.errors import GoalError
+from ow_lander.pan_tilt import (
+    PAN_LIMIT_RAD,
+    TILT_LIMIT_RAD,
+    AntennaPointing,
+    check_joints_goal,
+    reached,
+)
+
+
+@pytest.fixture(scope="module")
+def mast():
+    return AntennaPointing()
+
+
+@pytest.mark.parametrize(
+    ("pan", "tilt", "message"),
+    [
+        (3.3, 0.0, "pan = 3.3 rad is outside the limits [-3.2, 3.2] rad"),
+        (-3.21, 0.0, "pan = -3.21 rad is outside the limits [-3.2, 3.2] rad"),
+        (0.0, 1.6, "tilt = 1.6 rad is outside the limits [-1.56, 1.56] rad"),
+        (0.0, -2.0, "tilt = -2 rad is outside the limits [-1.56, 1.56] rad"),
+        (math.nan, 0.0, "pan = nan is not a finite number"),
+        (0.0, math.inf, "tilt = inf is not a finite number"),
+    ],
+)
+def test_bad_joint_goals_are_refused_naming_field_value_and_limit(pan, tilt, message):
+    with pytest.raises(GoalError) as error:
+        check_joints_goal(pan, tilt)
+    assert str(error.value) == message
+
+
+@pytest.mark.parametrize(
+    ("pan", "tilt"), [(0.0, 0.0), (PAN_LIMIT_RAD, TILT_LIMIT_RAD), (-PAN_LIMIT_RAD, -1.0)]
+)
+def test_joint_goals_within_the_limits_are_kept(pan, tilt):
+    assert check_joints_goal(pan, tilt) == (pan, tilt)
+
+
+@pytest.mark.parametrize(
+    ("pan", "tilt", "expected"),
+    [(0.5, 0.2, True), (0.549, 0.151, True), (0.56, 0.2, False), (0.5, 0.26, False)],
+)
+def test_arrival_is_within_0_05_rad_on_both_joints(pan, tilt, expected):
+    assert reached(pan, tilt, (0.5, 0.2)) is expected
+
+
+def test_at_zero_the_camera_is_above_the_tilt_axis_looking_along_minus_y(mast):
+    pointing = mast.pointing(np.zeros(mast.model.nq))
+    assert np.allclose(pointing.axis, [0.0, -1.0, 0.0], atol=1e-4)
+    assert pointing.origin[2] > mast.tilt_origin[2] + 0.5
+
+
+def test_a_positive_tilt_looks_down_and_a_positive_pan_turns_towards_plus_x(mast):
+    down = mast.pointing(mast.model.q_from({"j_ant_tilt": 0.5})).axis
+    turned = mast.pointing(mast.model.q_from({"j_ant_pan": 0.5})).axis
+    assert down[2] < -0.4 and turned[0] > 0.4
+
+
+POINTS = [
+    (1.5, 0.0, -0.155),  # the workspace in front of the arm
+    (1.46, -0.4, -0.05),  # OceanWATERS' test: the mound in front of the lander
+    (0.0, 3.0, 0.9),
+    (-2.0, -1.0, 3.0),
+    (2.0, 2.0, 0.0),
+    (125800.0, -81170.0, -80533.0),  # OceanWATERS' test: Jupiter
+]
+
+
+@pytest.mark.parametrize("point", POINTS)
+def test_look_at_puts_the_point_on_the_pointing_axis_by_fk(mast, point):
+    p = np.array(point)
+    pan, tilt = mast.look_at(p)
+    pointing = mast.pointing(mast.model.q_from({"j_ant_pan": pan, "j_ant_tilt": tilt}))
+    miss, ahead = pointing.miss(p)
+    assert miss < 1e-6 * max(1.0, ahead)  # on the axis (1 urad)
+    assert ahead > 0.0  # in front of the camera, not behind it
+    d = p - mast.tilt_origin
+    oceanwaters_pan = (math.atan2(d[1], d[0]) + math.pi / 2 + math.pi) % (2 * math.pi) - math.pi
+    assert math.cos(pan - oceanwaters_pan) == pytest.approx(1.0, abs=1e-6)
+
+
+def test_a_tool_frame_point_is_taken_at_the_arm_configuration(mast):
+    q = mast.model.q_from(UNSTOWED)
+    tip = mast.model.fk(q, "l_scoop_tip")
+    offset = np.array([0.1, -0.2, 0.05])
+    assert np.allclose(mast.to_base(1, offset, q), tip[:3, :3] @ offset + tip[:3, 3])
+    assert np.allclose(mast.to_base(0, offset, q), offset)
+    pan, tilt = mast.look_at(mast.to_base(1, np.zeros(3), q), q)
+    on_tip = mast.pointing(mast.model.q_from({"j_ant_pan": pan, "j_ant_tilt": tilt}, q))
+    assert on_tip.miss(tip[:3, 3])[0] < 1e-6
+
+
+@pytest.mark.parametrize(
+    ("frame", "point", "message"),
+    [
+        (2, (1.0, 0.0, 0.0), "frame = 2 is not one of"),
+        (-1, (1.0, 0.0, 0.0), "frame = -1 is not one of"),
+        (0, (math.nan, 0.0, 0.0), "point.x = nan is not a finite number"),
+        (1, (0.0, 0.0, -math.inf), "point.z = -inf is not a finite number"),
+    ],
+)
+def test_bad_cartesian_goals_are_refused(mast, frame, point, message):
+    with pytest.raises(GoalError, match=message.replace(".", r"\.")):
+        mast.to_base(frame, np.array(point), np.zeros(mast.model.nq))
+
+
+def test_points_the_mast_cannot_look_at_are_refused_with_the_reason(mast):
+    with pytest.raises(GoalError, match=r"within the camera's lever of 0\.538 m"):
+        mast.look_at(mast.tilt_origin + np.array([0.2, 0.0, 0.1]))
+    with pytest.raises(GoalError, match=r"needs tilt = 1\.\d+ rad, outside the limits \[-1\.56"):
+        mast.look_at(mast.tilt_origin + np.array([0.0, 0.0, -5.0]))  # straight down
