@@ -82,7 +82,7 @@ def _run_mission(directory: Path, **keys: Any) -> Run:
     path = directory / "mission.yaml"
     path.write_text(yaml.safe_dump(mission))
     proc = subprocess.run(
-        ["rosrun", "ow_lander", "mission", str(path)],
+        ["rosrun", "ow_mission", "mission", str(path)],
         capture_output=True,
         text=True,
         timeout=MISSION_TIMEOUT_S,
