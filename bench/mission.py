@@ -31,7 +31,7 @@ def main() -> int:
         path.write_text(yaml.safe_dump(mission))
         started = time.monotonic()
         run = subprocess.run(
-            ["rosrun", "ow_lander", "mission", str(path)],
+            ["rosrun", "ow_mission", "mission", str(path)],
             capture_output=True,
             text=True,
             check=False,
