@@ -139,28 +139,34 @@ class ArmActions:
 
     # ----------------------------------------------------------------------------- running
     def _run(self, name: str, handle: Any, goal: dict[str, Any]) -> None:
+        """Carry out a goal; the arm is released before the goal's end is announced, so that a
+        client may send its next goal as soon as it learns the end of this one."""
         parameters = dict(goal)
         self.node.marker(name, Operation.START, parameters, None)
-        end = SimpleNamespace(success=False, message="")
+        end: tuple[Any, Any, str]
         try:
-            end.success, end.message = self._carry_out(name, handle, goal, parameters)
+            end = self._carry_out(name, handle, goal, parameters)
         except OwLanderError as error:
-            end.message = f"{name} failed: {error}"
-            handle.set_aborted(self._result(name, None), end.message)
+            end = (handle.set_aborted, self._result(name, None), f"{name} failed: {error}")
         except Exception as error:
             rospy.logerr("arm_services: %s goal crashed: %r", name, error)
-            end.message = f"{name} failed with an internal error: {error!r}"
-            handle.set_aborted(text=end.message)
+            end = (handle.set_aborted, None, f"{name} failed with an internal error: {error!r}")
         finally:
             with self._lock:
                 self._running = None
             self.node.release()
-            self.node.marker(name, Operation.END, parameters, end)
+        announce, result, message = end
+        success = announce == handle.set_succeeded
+        self.node.marker(
+            name, Operation.END, parameters, SimpleNamespace(success=success, message=message)
+        )
+        announce(result, message)
 
     def _carry_out(
         self, name: str, handle: Any, goal: dict[str, Any], parameters: dict[str, Any]
-    ) -> tuple[bool, str]:
-        """Plan, execute and end the goal (succeeded, aborted or preempted)."""
+    ) -> tuple[Any, Any, str]:
+        """Plan and execute the goal: how to end it (succeeded, aborted or preempted), with
+        its result and text."""
         executor = self.node.executor
         start = arm_state(self.node.model, executor.current_joints(), *executor.wrench())
         request = to_request(
@@ -170,20 +176,15 @@ class ArmActions:
         trajectory: Trajectory
         trajectory, path = self.node.plan_to_file(request.operation, parameters, request.notes)
         if self._cancelled.is_set():
-            handle.set_canceled(self._result(name, request), "cancelled before execution")
-            return False, "cancelled before execution"
+            return handle.set_canceled, self._result(name, request), "cancelled before execution"
         feedback = partial(self._feedback, name, handle, request, [-np.inf])
         result = executor.execute(trajectory, request.wrench_limits, feedback)
         success, message = self._outcome(name, request, result)
         message = "; ".join([f"{message} ({path.name})", *request.notes])
         values = self._result(name, request, result.hold)
         if result.stopped:
-            handle.set_canceled(values, message)
-        elif success:
-            handle.set_succeeded(values, message)
-        else:
-            handle.set_aborted(values, message)
-        return success, message
+            return handle.set_canceled, values, message
+        return (handle.set_succeeded if success else handle.set_aborted), values, message
 
     def _outcome(
         self, name: str, request: ActionRequest, result: ExecutionResult
