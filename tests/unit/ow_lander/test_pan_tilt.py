@@ -104,15 +104,16 @@ def test_a_tool_frame_point_is_taken_at_the_arm_configuration(mast):
 @pytest.mark.parametrize(
     ("frame", "point", "message"),
     [
-        (2, (1.0, 0.0, 0.0), "frame = 2 is not one of"),
-        (-1, (1.0, 0.0, 0.0), "frame = -1 is not one of"),
+        (2, (1.0, 0.0, 0.0), "frame = 2 is neither 0 (base_link) nor 1 (tool, l_scoop_tip)"),
+        (-1, (1.0, 0.0, 0.0), "frame = -1 is neither 0"),
         (0, (math.nan, 0.0, 0.0), "point.x = nan is not a finite number"),
         (1, (0.0, 0.0, -math.inf), "point.z = -inf is not a finite number"),
     ],
 )
 def test_bad_cartesian_goals_are_refused(mast, frame, point, message):
-    with pytest.raises(GoalError, match=message.replace(".", r"\.")):
+    with pytest.raises(GoalError) as error:
         mast.to_base(frame, np.array(point), np.zeros(mast.model.nq))
+    assert message in str(error.value)
 
 
 def test_points_the_mast_cannot_look_at_are_refused_with_the_reason(mast):

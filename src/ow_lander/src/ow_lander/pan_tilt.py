@@ -135,7 +135,7 @@ class AntennaPointing:
             GoalError: unknown frame or a non-finite coordinate.
         """
         if frame not in FRAMES:
-            msg = f"frame = {frame} is not one of {FRAMES} (0 base_link, 1 tool)"
+            msg = f"frame = {frame} is neither 0 (base_link) nor 1 (tool, {SCOOP_TIP_FRAME})"
             raise GoalError(msg)
         p = np.array([_finite(f"point.{k}", v) for k, v in zip("xyz", point, strict=True)])
         if frame == FRAME_BASE:
