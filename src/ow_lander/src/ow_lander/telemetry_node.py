@@ -6,6 +6,7 @@ import time
 import warnings
 
 import rospy
+import rospy.impl.simtime
 from geometry_msgs.msg import Point, Pose, Quaternion
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
@@ -27,7 +28,7 @@ JOINT_STATE_QUEUE = 1000
 #: Publishers write in the callback (queue_size None), as the simulation does: no message is
 #: dropped for a subscriber that lags, which slows this node (and through /joint_states the
 #: simulation) instead. A queue hands each message to a writer thread per connection, which
-#: cost twice the CPU per joint state (634 vs 282 us, docs/telemetry.md).
+#: cost twice the CPU per joint state (634 vs 282 us with /clock, docs/telemetry.md).
 PUBLISH_QUEUE = None
 
 
@@ -50,7 +51,8 @@ class TelemetryNode:
         /arm_pose (owl_msgs/ArmPose): pose of l_scoop in base_link (m, unit quaternion),
             frame_id base_link.
 
-    Parameters: none. At shutdown the node logs the process CPU time it used per joint state.
+    Parameters: none; no clock either (it does not subscribe to /clock). At shutdown the node
+    logs the process CPU time it used per joint state.
     """
 
     def __init__(self) -> None:
@@ -89,6 +91,7 @@ class TelemetryNode:
                 stamp.to_sec(), msg.name, msg.position, msg.velocity, msg.effort
             )
         except TelemetryError as error:
+            # Without a clock rospy's time stands still: each distinct message is logged once.
             rospy.logwarn_throttle_identical(5.0, f"telemetry: joint state skipped: {error}")
             return
         header = Header(stamp=stamp)
@@ -115,6 +118,11 @@ class TelemetryNode:
 def main() -> None:
     """Entry point of ``rosrun ow_lander telemetry``."""
     rospy.init_node("telemetry")
+    # Every message is stamped with its joint state's stamp: this node needs no clock, and with
+    # /use_sim_time rospy would receive /clock (as often as /joint_states) for nothing.
+    clock = getattr(rospy.impl.simtime, "_clock_sub", None)
+    if clock is not None:
+        clock.unregister()
     node = TelemetryNode()
 
     def report() -> None:
