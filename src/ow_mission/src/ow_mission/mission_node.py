@@ -147,6 +147,7 @@ class MissionRunner:
             "power": ((), ("/power",)),
             "sim": (("/sim/resume",), ("/joint_states",)),
             "arm_services": (tuple(s.service.format(dig=self.config.dig) for s in STEPS), ()),
+            "viz": ((), ("/robot_description",)),
         }
         nodes = [
             stack.start_node(n.package, n.executable, params=params[n.executable], wait=False)

@@ -11,6 +11,7 @@ node (executable)       files (package ``config/``)          part loaded as the 
 ``arm_services``        ``ow_lander``: arm_services.yaml     its ``arm_services:`` section
 ``power``               ``ow_power``: power.yaml             its ``power:`` section
 ``record``              ``ow_power``: power.yaml             its ``record:`` section
+``viz``                 ``ow_viz``: viz.yaml                 the whole file
 ======================  ===================================  ======================================
 """
 
@@ -28,6 +29,7 @@ from ow_lander.config import CONFIG_FILE as ARM_SERVICES_YAML
 from ow_mission.errors import ConfigError
 from ow_power.config import CONFIG_FILE as POWER_YAML
 from ow_sim_bullet.config import PID_YAML, SIM_YAML
+from ow_viz.config import CONFIG_FILE as VIZ_YAML
 
 
 @dataclass(frozen=True)
@@ -51,6 +53,7 @@ STACK_NODES: tuple[NodeFiles, ...] = (
     NodeFiles("ow_power", "power", ((POWER_YAML, "power"),)),
     NodeFiles("ow_sim_bullet", "sim", ((SIM_YAML, ""), (PID_YAML, ""))),
     NodeFiles("ow_lander", "arm_services", ((ARM_SERVICES_YAML, "arm_services"),)),
+    NodeFiles("ow_viz", "viz", ((VIZ_YAML, ""),)),
 )
 
 
