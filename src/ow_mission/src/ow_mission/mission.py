@@ -20,13 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from ow_lander.terrain import HeightMap
 from ow_mission.mission_config import MissionConfig
 from ow_mission.node_config import stack_parameters
-
-#: Steps after which the mission renders the arm while it runs: none, the renders are made from
-#: the bags after the run, off the mission's critical path (:mod:`ow_mission.report`).
-RENDER_AFTER: tuple[str, ...] = ()
 
 
 @dataclass
@@ -363,29 +358,6 @@ def new_run_dir(config: MissionConfig, workspace: Path) -> Path:
     while run_dir.exists():
         run_dir, suffix = base / f"{stamp}_{suffix}", suffix + 1
     return run_dir
-
-
-def render_step(
-    run_dir: Path,
-    label: str,
-    joints: Mapping[str, float],
-    terrain: HeightMap | None,
-    target_xy: tuple[float, float],
-) -> Path:
-    """Render the arm at ``joints`` on ``terrain`` into ``run_dir/renders/<n>_<label>.png``,
-    framed on the arm and ``target_xy`` (m, base_link); returns the file."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from ow_mission.render import render_scene
-
-    index = len(list((run_dir / "renders").glob("*.png")))
-    image = render_scene(joints, terrain, around=[(target_xy[0], target_xy[1], 0.0)])
-    path = run_dir / "renders" / f"{index:02d}_{label}.png"
-    plt.imsave(path, image)
-    return path
 
 
 def load_report(run_dir: Path) -> Mapping[str, Any]:

@@ -20,19 +20,15 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 import ow_msgs.srv
-from ow_lander.conversions import height_map_from_msg
-from ow_lander.terrain import HeightMap
 from ow_mission.action_client_node import ActionStepClient
 from ow_mission.errors import ConfigError
 from ow_mission.mission import (
-    RENDER_AFTER,
     STEPS,
     MissionReport,
     PowerTrace,
     StepResult,
     new_run_dir,
     node_parameters,
-    render_step,
     write_report,
 )
 from ow_mission.mission_config import USAGE, MissionConfig, config_from_argv
@@ -45,7 +41,6 @@ from ow_mission.stack import (
     peak_memory_mb,
     private_master,
 )
-from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.msg import Power
 
 #: s of wall time to wait for /power to catch up with the simulation clock.
@@ -67,16 +62,9 @@ class MissionRunner:
         self.report = MissionReport(config, self.run_dir)
         self.power = PowerTrace()
         self._clock = 0.0
-        self._joints: dict[str, float] = {}
         self._joint_stamp = 0.0
-        self._terrain: HeightMap | None = None
         self._lock = threading.Lock()
         self._actions = ActionStepClient(config.dig) if config.interface == "actions" else None
-
-    def _render_step(self, label: str) -> None:
-        with self._lock:
-            joints, terrain = dict(self._joints), self._terrain
-        render_step(self.run_dir, label, joints, terrain, (self.config.x, self.config.y))
 
     # ------------------------------------------------------------------------- ROS callbacks
     def _on_clock(self, msg: Any) -> None:
@@ -84,7 +72,6 @@ class MissionRunner:
 
     def _on_joints(self, msg: Any) -> None:
         with self._lock:
-            self._joints = dict(zip(msg.name, msg.position, strict=False))
             self._joint_stamp = msg.header.stamp.to_sec()
 
     def _last_joint_stamp(self, quiet_s: float = 0.05, limit_s: float = 2.0) -> float:
@@ -98,11 +85,6 @@ class MissionRunner:
             with self._lock:
                 if self._joint_stamp == stamp or time.monotonic() > deadline:
                     return self._joint_stamp
-
-    def _on_terrain(self, msg: Any) -> None:
-        terrain = height_map_from_msg(msg)
-        with self._lock:
-            self._terrain = terrain
 
     def _on_power(self, msg: Any) -> None:
         self.power.add(
@@ -157,7 +139,6 @@ class MissionRunner:
             stack.wait_ready(node, *ready[spec.executable])
         rospy.Subscriber("/clock", Clock, self._on_clock, queue_size=10)
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=10)
-        rospy.Subscriber("/sim/terrain", HeightMapMsg, self._on_terrain, queue_size=1)
         rospy.Subscriber("/power", Power, self._on_power, queue_size=1000)
         # The sim node is ready (it offers /sim/resume): start its clock.
         error = self._sim_clock("resume")
@@ -212,8 +193,6 @@ class MissionRunner:
                 f"({result.wall_time_s:.2f} s wall) {result.message}",
                 flush=True,
             )
-            if self.config.renders and step.name in RENDER_AFTER:
-                self._render_step(step.name)
             if not result.success:
                 self.report.error = f"step {step.name} ({service}) failed: {result.message}"
                 return
