@@ -165,6 +165,8 @@ def test_force_torque_guard_stops_a_joint_move_and_holds_at_the_breach(model, un
     result = decision.result
     assert result.success and not result.reports_ground
     assert result.message == "force 11.5 N exceeded force_threshold 10.0 N"
+    assert result.wrench == pytest.approx((11.5, 0.0))
+    assert result.hold == decision.hold
     kinds = {s.detector for s in monitor.signals}
     assert kinds == {"force", "torque"}
     assert [s.contact for s in monitor.signals if s.detector == "force"][-1]

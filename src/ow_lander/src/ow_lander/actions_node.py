@@ -181,7 +181,7 @@ class ArmActions:
         result = executor.execute(trajectory, request.wrench_limits, feedback)
         success, message = self._outcome(name, request, result)
         message = "; ".join([f"{message} ({path.name})", *request.notes])
-        values = self._result(name, request, result.hold)
+        values = self._result(name, request, result.hold, result.wrench)
         if result.stopped:
             return handle.set_canceled, values, message
         return (handle.set_succeeded if success else handle.set_aborted), values, message
@@ -210,12 +210,19 @@ class ArmActions:
         return arm_state(self.node.model, joints, *executor.wrench())
 
     def _result(
-        self, name: str, request: ActionRequest | None, hold: dict[str, float] | None = None
+        self,
+        name: str,
+        request: ActionRequest | None,
+        hold: dict[str, float] | None = None,
+        wrench: tuple[float, float] | None = None,
     ) -> Any:
         """The result message of ``name`` filled with where the arm is now (or is held, when
-        a stop or a guard ended the move)."""
+        a stop or a guard ended the move) and, when a guard stopped it, the force and torque
+        that did."""
         point = None if request is None else request.surface_point
         values = action_values(self._state(hold), point)
+        if wrench is not None:
+            values.update(final_force=wrench[0], final_torque=wrench[1])
         return conv.fill_fields(getattr(owl, f"{name}Result")(), values)
 
     def _feedback(

@@ -64,6 +64,8 @@ class ExecutionResult:
         contact_time: s (simulation time) of the contact, or None.
         stopped: ended by a stop request (a cancelled action, ArmStop).
         hold: rad by joint name, where the arm was told to hold at the end, or None.
+        wrench: (N, N m), force and torque change magnitudes at which a force/torque guard
+            stopped the move, or None.
     """
 
     success: bool
@@ -75,6 +77,7 @@ class ExecutionResult:
     contact_time: float | None = None
     stopped: bool = False
     hold: dict[str, float] | None = None
+    wrench: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -445,6 +448,8 @@ class ExecutionMonitor:
         found = ExecutionResult(True, "ground found" if wrench is None else wrench.describe(), t)
         result = self._finished(found)
         result.hold = _by_name(self.trajectory.joints, hold)
+        if wrench is not None:
+            result.wrench = (wrench.force, wrench.torque)
         return Decision(None, result.hold, result)
 
     def _finished(self, result: ExecutionResult) -> ExecutionResult:
