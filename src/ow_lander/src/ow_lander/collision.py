@@ -8,7 +8,6 @@ link is below the terrain when one of its points is below the height map's surfa
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -104,22 +103,6 @@ class _LinkSamples(NamedTuple):
     radius: float
 
 
-def _urdf_rotation(rpy: tuple[float, float, float]) -> FloatArray:
-    """(3, 3) rotation of URDF fixed-axis ``rpy`` (rad), computed as pinocchio's URDF parser
-    (urdfdom) does it: through a normalised quaternion. ``pin.rpy.rpyToMatrix`` differs from it
-    by up to 4e-16, which would move the sample points off the coal model's placements."""
-    half_roll, half_pitch, half_yaw = rpy[0] / 2.0, rpy[1] / 2.0, rpy[2] / 2.0
-    sr, cr = math.sin(half_roll), math.cos(half_roll)
-    sp, cp = math.sin(half_pitch), math.cos(half_pitch)
-    sy, cy = math.sin(half_yaw), math.cos(half_yaw)
-    x = sr * cp * cy - cr * sp * sy
-    y = cr * sp * cy + sr * cp * sy
-    z = cr * cp * sy - sr * sp * cy
-    w = cr * cp * cy + sr * sp * sy
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    return np.asarray(pin.Quaternion(w / norm, x / norm, y / norm, z / norm).matrix())
-
-
 def _sample_points(shape: CollisionShape) -> FloatArray:
     """(n, 3) m, points on a primitive's surface in its own frame, for terrain checks."""
     if shape.kind == "box":
@@ -145,8 +128,7 @@ def _terrain_samples(
         # The link frame in its joint's frame, composed with each shape's origin in the link
         # frame, as pinocchio places the coal objects.
         placements = [
-            frame.placement * pin.SE3(_urdf_rotation(shape.rpy), shape.translation)
-            for shape in link_shapes
+            frame.placement * pin.SE3(shape.rotation, shape.translation) for shape in link_shapes
         ]
         points = np.vstack(
             [
