@@ -200,3 +200,16 @@ def test_every_package_declares_its_workspace_dependencies(modules):
     for package, uses in graph.items():
         declared = declared_dependencies(SRC / package / "package.xml")
         assert uses <= declared, f"{package} imports {sorted(uses - declared)} undeclared"
+
+
+def test_test_module_names_are_unique():
+    # pytest's default import mode puts each test folder on sys.path: two test files with the
+    # same name in different folders cannot both be collected in one run.
+    tests = Path(__file__).resolve().parents[1]
+    seen: dict[str, Path] = {}
+    clashes = []
+    for path in sorted(tests.rglob("test_*.py")):
+        if path.name in seen:
+            clashes.append(f"{seen[path.name].relative_to(tests)} and {path.relative_to(tests)}")
+        seen[path.name] = path
+    assert not clashes, f"test files share a name: {clashes}"
