@@ -213,3 +213,24 @@ def test_test_module_names_are_unique():
             clashes.append(f"{seen[path.name].relative_to(tests)} and {path.relative_to(tests)}")
         seen[path.name] = path
     assert not clashes, f"test files share a name: {clashes}"
+
+
+#: Limits that keep a module readable whole: a node module is wiring, a class one concern.
+MAX_NODE_MODULE_LINES = 250
+MAX_CLASS_LINES = 400
+
+
+def test_node_modules_and_classes_stay_small(modules):
+    too_long = []
+    for module in modules:
+        if ".nodes." in module.name:
+            continue
+        text = module.path.read_text()
+        if module.name.endswith("_node") and len(text.splitlines()) > MAX_NODE_MODULE_LINES:
+            too_long.append(f"{module.name}: {len(text.splitlines())} lines")
+        for node in ast.parse(text).body:
+            if isinstance(node, ast.ClassDef):
+                lines = (node.end_lineno or node.lineno) - node.lineno + 1
+                if lines > MAX_CLASS_LINES:
+                    too_long.append(f"{module.name}.{node.name}: {lines} lines")
+    assert not too_long, f"split these: {too_long}"
