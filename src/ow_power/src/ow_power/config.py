@@ -1,10 +1,10 @@
-"""Configuration of the power and recorder nodes: frozen dataclasses built by pure ``from_dict()``.
+"""Configuration of the power, recorder and battery nodes: frozen dataclasses from ``from_dict()``.
 
 The nodes read their private namespace once (``rospy.get_param("~")``) and pass the dict here;
-``config/power.yaml`` holds the defaults below under the node names ``power`` and ``record``, so
-``rosparam load config/power.yaml`` configures both (:data:`CONFIG_FILE`). A missing key takes its
-default; unknown keys, wrong types and values out of range are validated by the workspace's
-:class:`ow_lander.params.Params` and reported together in one
+``config/power.yaml`` holds the defaults below under the node names ``power``, ``record`` and
+``battery``, so ``rosparam load config/power.yaml`` configures all three (:data:`CONFIG_FILE`). A
+missing key takes its default; unknown keys, wrong types and values out of range are validated by
+the workspace's :class:`ow_lander.params.Params` and reported together in one
 :class:`~ow_power.errors.ConfigError` naming each key (``power/max_dt_s``, ``record/prefix``).
 """
 
@@ -18,8 +18,8 @@ from typing import Any
 from ow_lander.params import Params
 from ow_power.errors import ConfigError
 
-#: The power and recorder nodes' parameter file (``src/ow_power/config/power.yaml``): one
-#: section per node, ``power:`` and ``record:``.
+#: The power, recorder and battery nodes' parameter file (``src/ow_power/config/power.yaml``):
+#: one section per node, ``power:``, ``record:`` and ``battery:``.
 CONFIG_FILE = Path(__file__).resolve().parents[2] / "config" / "power.yaml"
 
 #: Topics the recorder records by default (missing ones are simply absent from the bag).
@@ -149,6 +149,103 @@ class RecorderConfig:
             split_size_mb=p.non_negative("split_size_mb", cls.split_size_mb, unit="MB"),
             compression=compression,
             queue_size=p.integer("queue_size", cls.queue_size, low=1),
+        )
+        p.finish()
+        return config
+
+
+#: Per-cell end-of-discharge voltages the cell model covers, V: ProgPy's Li-ion cell has an
+#: open-circuit voltage between about 3 V (empty) and 4.2 V (full).
+CELL_EOD_RANGE_V: tuple[float, float] = (2.5, 4.0)
+
+
+@dataclass(frozen=True)
+class BatteryConfig:
+    """Parameters of the battery node (private namespace ``~``) and of ``ow_power.battery.Battery``.
+
+    Defaults are OceanWATERS' (GSAP ``Battery`` model, 6S1P pack, ``system.cfg``).
+
+    Attributes:
+        initial_soc: state of charge at start, in (0, 1].
+        temperature_c: degrees C, the cells' initial and ambient temperature.
+        cells_in_series: cells of the pack, all in series (6S1P: 6).
+        mobile_charge_c: C, the pack's mobile charge (GSAP/ProgPy ``qMobile``; charge is the
+            same for every cell of a series string).
+        internal_resistance_ohm: ohm, the pack's ohmic resistance (``Ro``), shared equally by
+            the cells.
+        eod_voltage_v: V, the pack's end-of-discharge voltage (``VEOD``); per cell it must lie
+            in :data:`CELL_EOD_RANGE_V`.
+        update_rate_hz: Hz of simulation time at which the battery is stepped, estimated and
+            predicted (OceanWATERS' loop rate: 1 Hz).
+        max_gap_s: s, longest interval between two ``/power`` stamps that is drained; after a
+            longer gap (or a stamp going back) the battery restarts its period at the new stamp.
+        voltage_noise_v: V, standard deviation of the noise on the measured pack voltage.
+        temperature_noise_c: degrees C, standard deviation of the noise on the measured
+            temperature.
+        noise_seed: seed of the measurement noise (runs with the same seed are identical).
+    """
+
+    initial_soc: float = 0.95
+    temperature_c: float = 20.0
+    cells_in_series: int = 6
+    mobile_charge_c: float = 80387.0
+    internal_resistance_ohm: float = 0.0232
+    eod_voltage_v: float = 18.0
+    update_rate_hz: float = 1.0
+    max_gap_s: float = 1.0
+    voltage_noise_v: float = 0.0
+    temperature_noise_c: float = 0.0
+    noise_seed: int = 0
+
+    @property
+    def period_s(self) -> float:
+        """s of simulation time between updates."""
+        return 1.0 / self.update_rate_hz
+
+    @classmethod
+    def from_dict(cls, params: Mapping[str, Any]) -> BatteryConfig:
+        """Validate a parameter dict (missing keys take their defaults).
+
+        Every problem is collected and reported at once; a misspelt key gets the nearest known
+        key as a suggestion.
+
+        Args:
+            params: the node's private namespace (a section of :data:`CONFIG_FILE`).
+
+        Raises:
+            ConfigError: unknown keys, wrong types or values out of range; the message names
+                each key.
+        """
+        p = Params(params, "battery", ConfigError)
+        cells = p.integer("cells_in_series", cls.cells_in_series, low=1, high=1000)
+        eod_voltage_v = p.positive("eod_voltage_v", cls.eod_voltage_v, unit="V")
+        low, high = CELL_EOD_RANGE_V
+        if not low <= eod_voltage_v / cells <= high:
+            p.problem(
+                f"{p.name('eod_voltage_v')} = {eod_voltage_v:g} V is {eod_voltage_v / cells:g} V "
+                f"per cell for {cells} cells, outside [{low:g}, {high:g}] V per cell (the range "
+                "of the Li-ion cell model)"
+            )
+        config = cls(
+            initial_soc=p.number(
+                "initial_soc", cls.initial_soc, low=0.0, low_inclusive=False, high=1.0
+            ),
+            temperature_c=p.number(
+                "temperature_c", cls.temperature_c, low=-100.0, high=100.0, unit="degC"
+            ),
+            cells_in_series=cells,
+            mobile_charge_c=p.positive("mobile_charge_c", cls.mobile_charge_c, unit="C"),
+            internal_resistance_ohm=p.positive(
+                "internal_resistance_ohm", cls.internal_resistance_ohm, unit="ohm"
+            ),
+            eod_voltage_v=eod_voltage_v,
+            update_rate_hz=p.positive("update_rate_hz", cls.update_rate_hz, unit="Hz"),
+            max_gap_s=p.positive("max_gap_s", cls.max_gap_s, unit="s"),
+            voltage_noise_v=p.non_negative("voltage_noise_v", cls.voltage_noise_v, unit="V"),
+            temperature_noise_c=p.non_negative(
+                "temperature_noise_c", cls.temperature_noise_c, unit="degC"
+            ),
+            noise_seed=p.integer("noise_seed", cls.noise_seed, low=0, high=2**63 - 1),
         )
         p.finish()
         return config

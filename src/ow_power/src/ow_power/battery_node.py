@@ -1,0 +1,130 @@
+"""The battery node: the ProgPy battery fed by ``/power`` on simulation time (rospy wiring only)."""
+
+from __future__ import annotations
+
+import sys
+
+import rospy
+from sensor_msgs.msg import BatteryState as BatteryStateMsg
+
+from ow_msgs.msg import Power
+from ow_power.battery import Battery
+from ow_power.battery_feed import LoadFeed
+from ow_power.battery_messages import battery_messages
+from ow_power.config import BatteryConfig
+from ow_power.errors import ConfigError, PowerError
+from owl_msgs.msg import BatteryRemainingUsefulLife, BatteryStateOfCharge, BatteryTemperature
+
+#: ``/power`` messages queued: 10 s of the simulation's 100 Hz, as the power node's own queue; a
+#: dropped message would stretch the next interval.
+QUEUE_SIZE = 1000
+
+
+class BatteryNode:
+    """Publishes the battery's state of charge, remaining useful life and temperature.
+
+    The battery is stepped once per period of simulation time (``1 / ~update_rate_hz``, 1 s),
+    on the stamps of ``/power``: with the mean of ``electrical_power`` over the period. It does
+    not move while no ``/power`` arrives (a paused simulation).
+
+    ROS API:
+        Subscribes:
+            ``power`` (ow_msgs/Power, queue 1000): ``electrical_power`` (W: the motors'
+            electrical power and P0), held over the interval ending at each stamp.
+        Publishes (latched, queue 10; one message each per period, stamped with the period's
+        end, ``frame_id`` ``base_link``):
+            ``battery_state_of_charge`` (owl_msgs/BatteryStateOfCharge): ``value`` 0-1, the
+            UKF estimate.
+            ``battery_remaining_useful_life`` (owl_msgs/BatteryRemainingUsefulLife): ``value``
+            int32 s to end of discharge at the period's load; 2147483647 at no load, 0 once
+            discharged.
+            ``battery_temperature`` (owl_msgs/BatteryTemperature): ``value`` degrees C, the
+            UKF estimate.
+            ``battery_state`` (sensor_msgs/BatteryState): pack ``voltage`` V, ``current`` A
+            (negative: discharging), ``charge``/``capacity`` Ah, ``percentage`` 0-1,
+            ``cell_voltage`` V per cell (NaN for disconnected cells).
+        Parameters (private, read once; see :class:`~ow_power.config.BatteryConfig`):
+            ``~initial_soc`` (float in (0, 1], default 0.95).
+            ``~temperature_c`` (float, degrees C, default 20.0): initial and ambient.
+            ``~cells_in_series`` (int, default 6).
+            ``~mobile_charge_c`` (float, C, default 80387.0): the pack's qMobile.
+            ``~internal_resistance_ohm`` (float, ohm, default 0.0232): the pack's Ro.
+            ``~eod_voltage_v`` (float, V, default 18.0): the pack's VEOD.
+            ``~update_rate_hz`` (float, Hz of simulation time, default 1.0).
+            ``~max_gap_s`` (float, s, default 1.0): longer gaps between stamps are not drained.
+            ``~voltage_noise_v``, ``~temperature_noise_c`` (float, default 0: exact
+            measurements), ``~noise_seed`` (int, default 0).
+    """
+
+    def __init__(self, config: BatteryConfig) -> None:
+        """Make the battery, advertise its topics and subscribe to ``power``.
+
+        Raises:
+            PowerError: the configured pack cannot start (initial voltage at end of discharge).
+        """
+        self.config = config
+        self.battery = Battery(config)
+        self._feed = LoadFeed(config.period_s, config.max_gap_s)
+        self._publishers = [
+            rospy.Publisher(topic, msg_type, queue_size=10, latch=True)
+            for topic, msg_type in (
+                ("battery_state_of_charge", BatteryStateOfCharge),
+                ("battery_remaining_useful_life", BatteryRemainingUsefulLife),
+                ("battery_temperature", BatteryTemperature),
+                ("battery_state", BatteryStateMsg),
+            )
+        ]
+        self._subscriber = rospy.Subscriber("power", Power, self._on_power, queue_size=QUEUE_SIZE)
+
+    def _on_power(self, msg: Power) -> None:
+        restarts = self._feed.restarts
+        try:
+            periods = self._feed.add(msg.header.stamp.to_sec(), msg.electrical_power)
+        except PowerError as exc:
+            rospy.logwarn_throttle(5.0, f"battery: /power message skipped: {exc}")
+            return
+        if self._feed.restarts > restarts:
+            rospy.logwarn_throttle(
+                5.0,
+                f"battery: /power at {msg.header.stamp.to_sec():.3f} s follows a gap longer than "
+                f"{self.config.max_gap_s} s or goes back in time; gap not drained",
+            )
+        for period in periods:
+            was_depleted = self.battery.state.depleted
+            state = self.battery.update(period.mean_load_w, period.duration_s)
+            if state.depleted and not was_depleted:
+                rospy.logerr(
+                    f"battery: end of discharge at {period.end_s:.1f} s "
+                    f"({state.voltage_v:.2f} V at {state.load_w:.1f} W)"
+                )
+            messages = battery_messages(
+                state,
+                rospy.Time.from_sec(period.end_s),
+                self.config.cells_in_series,
+                self.battery.capacity_c,
+            )
+            for publisher, message in zip(self._publishers, messages, strict=True):
+                publisher.publish(message)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the battery node until shutdown; 1 on a configuration error."""
+    rospy.init_node("battery", argv=argv)
+    try:
+        config = BatteryConfig.from_dict(rospy.get_param("~", {}))
+        node = BatteryNode(config)
+    except (ConfigError, PowerError) as exc:
+        rospy.logfatal(f"battery: {exc}")
+        return 1
+    state = node.battery.state
+    rospy.loginfo(
+        f"battery: {config.cells_in_series} cells in series, SOC {state.soc:.3f}, "
+        f"{state.voltage_v:.2f} V, {state.temperature_c:.1f} degC, "
+        f"update every {config.period_s:g} s of simulation time"
+    )
+    rospy.spin()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
