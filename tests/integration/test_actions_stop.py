@@ -87,6 +87,7 @@ def test_arm_stop_stops_a_goal_and_aborts_when_idle(stack, joints):
     stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
     start = joints.latest().copy()
     goal, target = _long_move(joints)
+    client("ArmStop")  # connected before the move: the request itself is timed
     c = client("ArmMoveJoints")
     c.send_goal(goal)
     _halfway(c, joints, start, target)
