@@ -9,7 +9,7 @@ import pytest
 from ow_lander.config import ArmServicesConfig
 from ow_mission.errors import ConfigError
 from ow_mission.node_config import STACK_NODES, merge, shipped_parameters, stack_parameters
-from ow_power.config import PowerConfig, RecorderConfig
+from ow_power.config import BatteryConfig, PowerConfig, RecorderConfig
 from ow_sim_bullet.config import SimConfig
 from ow_viz.config import VizConfig
 
@@ -17,6 +17,7 @@ PARSERS: dict[str, Callable[[Any], Any]] = {
     "sim": SimConfig.from_dict,
     "arm_services": ArmServicesConfig.from_dict,
     "power": PowerConfig.from_dict,
+    "battery": BatteryConfig.from_dict,
     "record": RecorderConfig.from_dict,
     "viz": VizConfig.from_dict,
 }

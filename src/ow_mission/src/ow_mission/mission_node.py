@@ -127,6 +127,7 @@ class MissionRunner:
         ready: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
             "record": ((), ()),
             "power": ((), ("/power",)),
+            "battery": ((), ("/battery_state_of_charge",)),
             "sim": (("/sim/resume",), ("/joint_states",)),
             "arm_services": (tuple(s.service.format(dig=self.config.dig) for s in STEPS), ()),
             "viz": ((), ("/robot_description",)),

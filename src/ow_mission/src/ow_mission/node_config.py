@@ -10,6 +10,7 @@ node (executable)       files (package ``config/``)          part loaded as the 
 ``sim``                 ``ow_sim_bullet``: sim.yaml, pid.yaml  the whole of both files
 ``arm_services``        ``ow_lander``: arm_services.yaml     its ``arm_services:`` section
 ``power``               ``ow_power``: power.yaml             its ``power:`` section
+``battery``             ``ow_power``: power.yaml             its ``battery:`` section
 ``record``              ``ow_power``: power.yaml             its ``record:`` section
 ``viz``                 ``ow_viz``: viz.yaml                 the whole file
 ======================  ===================================  ======================================
@@ -51,6 +52,7 @@ class NodeFiles:
 STACK_NODES: tuple[NodeFiles, ...] = (
     NodeFiles("ow_power", "record", ((POWER_YAML, "record"),)),
     NodeFiles("ow_power", "power", ((POWER_YAML, "power"),)),
+    NodeFiles("ow_power", "battery", ((POWER_YAML, "battery"),)),
     NodeFiles("ow_sim_bullet", "sim", ((SIM_YAML, ""), (PID_YAML, ""))),
     NodeFiles("ow_lander", "arm_services", ((ARM_SERVICES_YAML, "arm_services"),)),
     NodeFiles("ow_viz", "viz", ((VIZ_YAML, ""),)),
