@@ -50,7 +50,7 @@ def test_a_node_that_dies_reports_its_log(ros_master):
     stack = RosStack(ros_master)
     with pytest.raises(HarnessError, match=r"(?s)exited.*cannot read mission file"):
         stack.start_node(
-            "ow_lander",
+            "ow_mission",
             "mission",
             name="harness_dies",
             args=["/nonexistent/mission.yaml"],
@@ -75,3 +75,35 @@ def test_service_call_through_the_stack(ros_master):
     finally:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
+
+
+SCRIPT = """
+import sys, time
+from ow_mission.stack import RosStack, private_master
+with private_master() as master:
+    stack = RosStack(master)
+    try:
+        node = stack.start_node("rosout", "rosout", name="orphan_check",
+                                wait_for_services=["/orphan_check/get_loggers"])
+        print(node.proc.pid, flush=True)
+        time.sleep(600)
+    finally:
+        stack.shutdown()
+"""
+
+
+def test_a_terminated_script_stops_its_nodes(tmp_path):
+    # SIGTERM (kill, pkill, a CI timeout) must not leave the nodes running without their master.
+    script = subprocess.Popen(
+        ["python", "-c", SCRIPT], stdout=subprocess.PIPE, text=True, start_new_session=True
+    )
+    try:
+        node_pid = int(script.stdout.readline())
+        os.kill(node_pid, 0)  # the node runs
+        script.send_signal(signal.SIGTERM)
+        assert script.wait(timeout=30) == 128 + signal.SIGTERM
+        with pytest.raises(ProcessLookupError):
+            os.killpg(node_pid, 0)
+    finally:
+        if script.poll() is None:
+            os.killpg(script.pid, signal.SIGKILL)

@@ -309,12 +309,33 @@ def private_master(log_dir: Path | None = None, use_sim_time: bool = True) -> It
     """
     directory = log_dir or Path(tempfile.mkdtemp(prefix="ow_ros_"))
     master = RosMaster(directory)
-    master.start()
+    with _exit_on_termination():
+        master.start()
+        try:
+            master.set_param("/use_sim_time", use_sim_time)
+            yield master
+        finally:
+            master.stop()
+
+
+@contextlib.contextmanager
+def _exit_on_termination() -> Iterator[None]:
+    """While open, SIGTERM and SIGHUP raise SystemExit in the main thread instead of killing the
+    process outright, so that the ``finally`` blocks stopping the nodes run: a killed mission or
+    script must not leave its simulation running at full speed with no master."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def leave(signum: int, _frame: Any) -> None:
+        raise SystemExit(128 + signum)
+
+    previous = {sig: signal.signal(sig, leave) for sig in (signal.SIGTERM, signal.SIGHUP)}
     try:
-        master.set_param("/use_sim_time", use_sim_time)
-        yield master
+        yield
     finally:
-        master.stop()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def peak_memory_mb(roots: Iterable[int]) -> float:
