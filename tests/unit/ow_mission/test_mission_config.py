@@ -23,7 +23,10 @@ def test_the_shipped_mission_file_is_valid_and_complete():
 @pytest.mark.parametrize(
     ("raw", "match"),
     [
-        ({"trench_depth": -0.1}, r"mission/trench_depth = -0.1 m is outside \[0.001, 0.3\] m"),
+        ({"trench_depth": -0.1}, r"mission/trench_depth = -0.1 m is outside \[0.001, 0.1\] m"),
+        # the scoop digs the trench out: the dig services' limit holds, not the grinder's
+        ({"trench_depth": 0.12}, r"mission/trench_depth = 0.12 m is outside \[0.001, 0.1\] m"),
+        ({"trench_length": 1.5}, r"mission/trench_length = 1.5 m is outside \[0.01, 1\] m"),
         ({"x": float("nan")}, "mission/x must be finite"),
         ({"x": "far"}, "mission/x must be a number"),
         ({"dig": "spiral"}, "mission/dig = 'spiral' is not one of linear, circular"),

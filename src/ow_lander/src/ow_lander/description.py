@@ -35,6 +35,15 @@ EUROPA_GRAVITY = 1.315
 #: mission's expected ground.
 DEFAULT_GROUND_Z = -0.155
 
+#: m, deepest trench the grinder can make: its 0.16 m length less clearance for the hand (the
+#: grind service's limit, and the mission's).
+MAX_GRIND_DEPTH = 0.14
+#: m, deepest cut or sweep of the scoop: its mouth is ~0.08 m deep; deeper buries the hand (the
+#: dig services' limit, and the mission's).
+MAX_SCOOP_DEPTH = 0.1
+#: m, longest trench or cut the services accept.
+MAX_LENGTH = 1.0
+
 #: Frames the services and tests use.
 BASE_FRAME = "base_link"
 SCOOP_LINK = "l_scoop"

@@ -23,6 +23,9 @@ from ow_lander.description import (
     DEFAULT_GROUND_Z,
     GRINDER_LINK,
     GRINDER_TIP_FRAME,
+    MAX_GRIND_DEPTH,
+    MAX_LENGTH,
+    MAX_SCOOP_DEPTH,
     SCOOP_LINK,
     SCOOP_TIP_FRAME,
 )
@@ -38,12 +41,6 @@ FloatArray = npt.NDArray[np.float64]
 APPROACH_HEIGHT = 0.2
 #: m, lateral distance between the two grinding passes (OceanWATERS: 0.08 m / 0.08 rad).
 GRIND_PASS_SHIFT = 0.08
-#: m, deepest trench the grinder can make: its 0.16 m length less clearance for the hand.
-MAX_GRIND_DEPTH = 0.14
-#: m, deepest cut or sweep of the scoop (its mouth is ~0.08 m deep; deeper buries the hand).
-MAX_SCOOP_DEPTH = 0.1
-#: m, longest trench or cut accepted.
-MAX_LENGTH = 1.0
 #: rad, sweep of the circular dig (OceanWATERS: 2 pi / 3 of the distal pitch).
 CIRCULAR_SWEEP = 2 * math.pi / 3
 #: rad, (shoulder pitch, prox, dist, hand, scoop) of the reference configurations, aimed by the

@@ -15,13 +15,17 @@ from typing import Any
 
 import yaml
 
-from ow_lander.description import DEFAULT_GROUND_Z
+from ow_lander.description import DEFAULT_GROUND_Z, MAX_GRIND_DEPTH, MAX_LENGTH, MAX_SCOOP_DEPTH
 from ow_lander.params import Params, suggest
 from ow_mission.errors import ConfigError
 from ow_mission.node_config import STACK_NODES
 
 #: The default mission file shipped with the workspace.
 DEFAULT_MISSION_FILE: Path = Path(__file__).resolve().parents[2] / "config" / "mission.yaml"
+
+#: m, deepest a depth of the mission may be: each is ground by the grinder and then dug out by the
+#: scoop, so the services' smaller limit holds (one source: ow_lander.description).
+MAX_STEP_DEPTH = min(MAX_GRIND_DEPTH, MAX_SCOOP_DEPTH)
 
 #: How the mission is started.
 USAGE = f"usage: rosrun ow_mission mission [mission.yaml]   (default: {DEFAULT_MISSION_FILE})"
@@ -134,14 +138,18 @@ class MissionConfig:
             search_distance=p.number(
                 "search_distance", d.search_distance, low=0.01, high=2.0, unit="m"
             ),
-            trench_depth=p.number("trench_depth", d.trench_depth, low=0.001, high=0.3, unit="m"),
-            trench_length=p.number("trench_length", d.trench_length, low=0.01, high=1.0, unit="m"),
+            trench_depth=p.number(
+                "trench_depth", d.trench_depth, low=0.001, high=MAX_STEP_DEPTH, unit="m"
+            ),
+            trench_length=p.number(
+                "trench_length", d.trench_length, low=0.01, high=MAX_LENGTH, unit="m"
+            ),
             parallel=p.boolean("parallel", d.parallel),
             bottom_grind_depth=p.number(
-                "bottom_grind_depth", d.bottom_grind_depth, low=0.001, high=0.3, unit="m"
+                "bottom_grind_depth", d.bottom_grind_depth, low=0.001, high=MAX_STEP_DEPTH, unit="m"
             ),
             dig=p.string("dig", d.dig, choices=("linear", "circular")),
-            dig_length=p.number("dig_length", d.dig_length, low=0.01, high=1.0, unit="m"),
+            dig_length=p.number("dig_length", d.dig_length, low=0.01, high=MAX_LENGTH, unit="m"),
             discard=(discard[0], discard[1], discard[2]),
             terrain_forces=p.string("terrain_forces", d.terrain_forces),
             real_time_factor=p.number("real_time_factor", d.real_time_factor, low=0.0, high=100.0),
