@@ -21,7 +21,7 @@ from ow_lander.description import (
 from ow_lander.terrain import HeightMap
 from ow_sim_bullet.carving import TerrainCarver
 from ow_sim_bullet.config import SimConfig
-from ow_sim_bullet.joint_control import JointSample
+from ow_sim_bullet.joints import JointSample
 from ow_sim_bullet.tool_forces import ToolForces
 from ow_sim_bullet.tool_tracking import DIG_END_GAP_S, WRIST_FT_LINK, ToolTracker
 

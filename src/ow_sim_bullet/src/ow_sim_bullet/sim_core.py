@@ -36,7 +36,8 @@ from ow_sim_bullet.bullet_terrain import BulletTerrain
 from ow_sim_bullet.carving import TerrainCarver, collision_surface_points
 from ow_sim_bullet.config import PidGains, SimConfig
 from ow_sim_bullet.errors import ConfigError
-from ow_sim_bullet.joint_control import ClippedSetpoint, FloatArray, JointController, JointSample
+from ow_sim_bullet.joint_control import FloatArray, JointController
+from ow_sim_bullet.joints import ClippedSetpoint, JointSample
 from ow_sim_bullet.tool_forces import ToolForces
 from ow_sim_bullet.tool_tracking import TOOLS, ToolSnapshot, ToolTracker
 from ow_sim_bullet.trajectory import JointTrajectory
