@@ -324,3 +324,23 @@ def test_no_ground_keeps_what_was_recorded(no_ground):
     assert list(ops["name"]) == ["unstow", "guarded_move"]
     assert list(ops["success"]) == [True, False]
     assert "no ground" in ops["message"].iloc[1]
+
+
+VIEWER_LATCHED = ("/tf_static", "/robot_description", "/viz/terrain")
+
+
+def test_every_bag_replays_in_a_viewer(mission):
+    """Each split file on its own has the frames, the robot and the terrain a viewer needs, the
+    latched ones flagged as latched (read with the ROS rosbag API)."""
+    assert len(mission.bags) > 1, "the mission's bags were not split: the check needs several"
+    for path in mission.bags:
+        with rosbag.Bag(str(path)) as bag:
+            topics = bag.get_type_and_topic_info().topics
+            assert topics["/tf"].message_count > 0, path.name
+            assert topics["/robot_description"].msg_type == "std_msgs/String", path.name
+            assert topics["/viz/terrain"].msg_type == "visualization_msgs/Marker", path.name
+            for topic in VIEWER_LATCHED:
+                flags = [
+                    c.header.get("latching") for c in bag._connections.values() if c.topic == topic
+                ]
+                assert flags and all(f == b"1" for f in flags), f"{path.name}: {topic} {flags}"
