@@ -140,7 +140,8 @@ class ExecutionConfig:
             this node can stream).
         start_delay_s: s (simulation time) between sending a trajectory and its first row.
         delivery_wait_s: s (wall), how long the simulation's clock stays paused while a
-            trajectory is delivered to it.
+            trajectory is delivered to a simulation that sends no receipt (ours publishes
+            ``/sim/trajectory_received``, and the clock resumes on it).
         service_wait_s: s (wall), how long to look for the simulation's ``/sim/pause`` and
             ``/sim/resume`` services (once).
         command_rate_hz: Hz (simulation time), set-point rate of the "position_controllers"

@@ -177,9 +177,10 @@ class ArmExecutor(ArmObserver):
                 self._wait_quiet(cfg.delivery_wait_s)
             with self._state_changed:
                 t_start = self._joint_stamp + cfg.start_delay_s
-            self.trajectory_pub.publish(conv.trajectory_msg(trajectory, t_start))
+            message = conv.trajectory_msg(trajectory, t_start)
+            self.trajectory_pub.publish(message)
             if paused:
-                time.sleep(cfg.delivery_wait_s)
+                self._sim_clock.wait_received(message.header.stamp, cfg.delivery_wait_s)
         finally:
             if paused:
                 self._sim_clock.call("resume")

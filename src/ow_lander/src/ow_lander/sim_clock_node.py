@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import threading
+import time
+
 import rospy
+from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
 
@@ -11,11 +15,35 @@ class SimClock:
 
     Calls: ``/sim/pause``, ``/sim/resume`` (std_srvs/Trigger), when the simulation offers them;
     whether it does is looked up once, within ``service_wait_s`` s of wall time.
+    Subscribes: ``/sim/trajectory_received`` (std_msgs/Header, stamp = the trajectory's start):
+        the simulation's receipt of a trajectory, so the clock resumes only once it has it.
     """
 
     def __init__(self, service_wait_s: float) -> None:
         self.service_wait_s = service_wait_s
         self._offered: bool | None = None
+        self._received = threading.Condition()
+        self._last_received: rospy.Time | None = None
+        self._receipts = rospy.Subscriber(
+            "/sim/trajectory_received", Header, self._on_received, queue_size=10
+        )
+
+    def _on_received(self, msg: Header) -> None:
+        with self._received:
+            self._last_received = msg.stamp
+            self._received.notify_all()
+
+    def wait_received(self, stamp: rospy.Time, fallback_s: float) -> None:
+        """Wait (wall time) until the simulation confirms the trajectory starting at ``stamp``,
+        up to ``service_wait_s``; a simulation that sends no receipts gets ``fallback_s``."""
+        if self._receipts.get_num_connections() == 0:
+            time.sleep(fallback_s)
+            return
+        with self._received:
+            if not self._received.wait_for(
+                lambda: self._last_received == stamp, timeout=self.service_wait_s
+            ):
+                rospy.logwarn("arm_services: no receipt of the trajectory from the simulation")
 
     def call(self, action: str) -> bool:
         """Call ``/sim/<action>`` (pause or resume); False when the simulation has none or the

@@ -10,7 +10,7 @@ from typing import Any
 import rospy
 import rospy.impl.simtime
 import tf2_ros
-from std_msgs.msg import Float64
+from std_msgs.msg import Float64, Header
 from std_srvs.srv import Trigger, TriggerResponse
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
@@ -69,7 +69,8 @@ class SimNode:
             (controllers shou_yaw, shou_pitch, prox_pitch, dist_pitch, hand_yaw, scoop_yaw,
             grinder_yaw, ant_pan, ant_tilt); cancels that joint's trajectory.
         /sim/joint_trajectory (trajectory_msgs/JointTrajectory): interpolated by the sim; a zero
-            header stamp starts it on arrival, else at that sim time.
+            header stamp starts it on arrival, else at that sim time; receipt published on
+            ``~trajectory_received`` (std_msgs/Header, the trajectory's stamp) once queued.
         /dem/scoop_wrench, /dem/grinder_wrench (geometry_msgs/WrenchStamped): with
             ``~terrain_forces: bridge`` only, the co-simulation's wrenches (ow_dem_bridge).
 
@@ -121,6 +122,7 @@ class SimNode:
         rospy.Subscriber(
             "~joint_trajectory", JointTrajectoryMsg, self._on_trajectory, queue_size=10
         )
+        self._received_pub = rospy.Publisher("~trajectory_received", Header, queue_size=10)
         rospy.Service("~reset", Trigger, self._on_reset)
         rospy.Service("~pause", Trigger, self._on_pause)
         rospy.Service("~resume", Trigger, self._on_resume)
@@ -146,6 +148,8 @@ class SimNode:
             rospy.logerr(f"sim: trajectory ignored: {error}")
             return
         self.runner.command_trajectory(request.build, _warn)
+        # Queued before any later pause/resume/step: a sender waiting for this may resume.
+        self._received_pub.publish(Header(stamp=msg.header.stamp))
 
     def _on_reset(self, _: Any) -> TriggerResponse:
         try:
