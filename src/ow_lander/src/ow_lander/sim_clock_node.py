@@ -24,6 +24,7 @@ class SimClock:
         self._offered: bool | None = None
         self._received = threading.Condition()
         self._last_received: rospy.Time | None = None
+        self._receipts_connected: bool | None = None
         self._receipts = rospy.Subscriber(
             "/sim/trajectory_received", Header, self._on_received, queue_size=10
         )
@@ -36,7 +37,7 @@ class SimClock:
     def wait_received(self, stamp: rospy.Time, fallback_s: float) -> None:
         """Wait (wall time) until the simulation confirms the trajectory starting at ``stamp``,
         up to ``service_wait_s``; a simulation that sends no receipts gets ``fallback_s``."""
-        if self._receipts.get_num_connections() == 0:
+        if not self._sends_receipts():
             time.sleep(fallback_s)
             return
         with self._received:
@@ -57,6 +58,17 @@ class SimClock:
         except rospy.ServiceException as error:
             rospy.logwarn("arm_services: /sim/%s failed: %s", action, error)
             return False
+
+    def _sends_receipts(self) -> bool:
+        """True once the receipt subscription is connected. Right after start-up it may not be
+        yet (the first trajectory can follow within a second): wait up to ``service_wait_s`` the
+        first time; a simulation that never connects is then used without receipts."""
+        if self._receipts_connected is None:
+            deadline = time.monotonic() + self.service_wait_s
+            while self._receipts.get_num_connections() == 0 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            self._receipts_connected = self._receipts.get_num_connections() > 0
+        return self._receipts_connected
 
     def _offers(self, services: tuple[str, ...]) -> bool:
         for name in services:
