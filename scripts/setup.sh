@@ -19,6 +19,8 @@ apt_packages=(
   # action message generation (owl_msgs): actionlib_msgs' .msg files, cmake macros and Python
   ros-actionlib-msgs libactionlib-msgs-dev python3-actionlib-msgs python3-actionlib
   libgeometry-msgs-dev
+  # ow_faults and the simulation's PID gains: dynamic_reconfigure servers, their .cfg generation
+  python3-dynamic-reconfigure libdynamic-reconfigure-config-init-mutex-dev
   # ow_viz: RViz, and a virtual X server and ImageMagick's `import` for its screenshot test
   rviz xvfb imagemagick
   # what other Debian Python packages ask for, so that `pip check` in the venv is clean

@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import sys
+import threading
 
 import rospy
+from ow_faults.errors import FaultError
+from ow_faults.injection import FaultSet
+from ow_faults.listener_node import FaultsListener
 from sensor_msgs.msg import BatteryState as BatteryStateMsg
 
 from ow_msgs.msg import Power
 from ow_power.battery import Battery
+from ow_power.battery_faults import PowerFaults
 from ow_power.battery_feed import LoadFeed
 from ow_power.battery_messages import battery_messages
 from ow_power.config import BatteryConfig
@@ -31,6 +36,9 @@ class BatteryNode:
         Subscribes:
             ``power`` (ow_msgs/Power, queue 1000): ``electrical_power`` (W: the motors'
             electrical power and P0), held over the interval ending at each stamp.
+            ``/faults/parameter_updates`` (dynamic_reconfigure/Config, latched): the power
+            faults (:mod:`ow_power.battery_faults`): extra load, custom profile, disconnected
+            cells, forced low SOC, capacity loss and thermal failure.
         Publishes (latched, queue 10; one message each per period, stamped with the period's
         end, ``frame_id`` ``base_link``):
             ``battery_state_of_charge`` (owl_msgs/BatteryStateOfCharge): ``value`` 0-1, the
@@ -64,6 +72,8 @@ class BatteryNode:
         """
         self.config = config
         self.battery = Battery(config)
+        self.faults = PowerFaults(self.battery)
+        self._lock = threading.Lock()  # the battery: /power and /faults arrive on two threads
         self._feed = LoadFeed(config.period_s, config.max_gap_s)
         self._publishers = [
             rospy.Publisher(topic, msg_type, queue_size=10, latch=True)
@@ -75,8 +85,23 @@ class BatteryNode:
             )
         ]
         self._subscriber = rospy.Subscriber("power", Power, self._on_power, queue_size=QUEUE_SIZE)
+        self._faults = FaultsListener(self._on_faults, "battery")
+
+    def _on_faults(self, faults: FaultSet) -> None:
+        with self._lock:
+            try:
+                events = self.faults.update(faults)
+            except (FaultError, PowerError) as error:
+                rospy.logerr(f"battery: power fault not applied: {error}")
+                return
+        for event in events:
+            rospy.logwarn(f"battery: {event} at {self.battery.state.time_s:.1f} s")
 
     def _on_power(self, msg: Power) -> None:
+        with self._lock:
+            self._take_power(msg)
+
+    def _take_power(self, msg: Power) -> None:
         restarts = self._feed.restarts
         try:
             periods = self._feed.add(msg.header.stamp.to_sec(), msg.electrical_power)
@@ -91,6 +116,7 @@ class BatteryNode:
             )
         for period in periods:
             was_depleted = self.battery.state.depleted
+            self.battery.set_extra_load(self.faults.extra_load_w())
             state = self.battery.update(period.mean_load_w, period.duration_s)
             if state.depleted and not was_depleted:
                 rospy.logerr(

@@ -7,7 +7,7 @@ and :data:`PID_YAML`) and raises :class:`ConfigError` listing every bad key at o
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -82,6 +82,15 @@ class PidGains:
         params.finish()  # also names unknown keys
         return gains
 
+    def updated(self, changes: Mapping[str, Any], where: str) -> PidGains:
+        """These gains with ``changes`` (some of p, i, d, i_clamp) applied and validated.
+
+        Raises:
+            ConfigError: as :meth:`from_dict`, for the gains after the change.
+        """
+        values = {"p": self.p, "i": self.i, "d": self.d, "i_clamp": self.i_clamp}
+        return PidGains.from_dict({**values, **changes}, where)
+
     @classmethod
     def read(cls, params: Params) -> PidGains:
         """Read the gains from ``params``; problems are recorded for its root's
@@ -100,6 +109,28 @@ class PidGains:
             if i_clamp is None
             else params.check_number(i_clamp, params.name("i_clamp"), 0.0, low=0.0, unit="N m"),
         )
+
+
+#: The gains of one joint, the fields of ``SetPidGains`` and of the PID dynamic_reconfigure.
+PID_FIELDS = ("p", "i", "d", "i_clamp")
+
+
+def gain_changes(values: Mapping[str, float], named: Sequence[str]) -> dict[str, float]:
+    """The gains a partial ``SetPidGains`` request changes.
+
+    Args:
+        values: the request's p, i, d and i_clamp (a field left out reads 0).
+        named: the request's ``set``: the gains it sets; empty: those given non-zero.
+
+    Raises:
+        ConfigError: ``named`` holds a name other than p, i, d, i_clamp.
+    """
+    unknown = [n for n in named if n not in PID_FIELDS]
+    if unknown:
+        msg = f"set names unknown gains {unknown}; gains: {list(PID_FIELDS)}"
+        raise ConfigError(msg)
+    names = list(named) or [n for n in PID_FIELDS if values[n] != 0.0]
+    return {n: float(values[n]) for n in names}
 
 
 def _pair(params: Params, key: str, default: tuple[float, float], unit: str) -> tuple[float, float]:
@@ -181,6 +212,7 @@ class SimConfig:
         wrench_rate_hz: Hz of sim time, contact wrenches and the ground-truth tip height.
         tool_state_rate_hz: Hz of sim time, /sim/scoop_state and /sim/grinder_state.
         terrain_publish_period: s of wall time, minimum interval between /sim/terrain updates.
+        noise_seed: seed of the injected F/T sensor noise (>= 0; equal seeds, equal runs).
         gains: PID gains by joint name.
         initial_positions: rad, joint positions at start-up and after a reset, by joint name.
     """
@@ -208,6 +240,7 @@ class SimConfig:
     wrench_rate_hz: float = 50.0
     tool_state_rate_hz: float = 10.0
     terrain_publish_period: float = 0.5
+    noise_seed: int = 0
     gains: Mapping[str, PidGains] = field(default_factory=_default_gains)
     initial_positions: Mapping[str, float] = field(default_factory=_default_initial)
 
@@ -275,6 +308,7 @@ class SimConfig:
             terrain_publish_period=p.non_negative(
                 "terrain_publish_period", d.terrain_publish_period, "s"
             ),
+            noise_seed=p.integer("noise_seed", d.noise_seed, low=0),
             gains=gains,
             initial_positions=initial,
         )

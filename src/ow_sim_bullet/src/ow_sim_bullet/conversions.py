@@ -20,6 +20,7 @@ from geometry_msgs.msg import TransformStamped, WrenchStamped
 
 from ow_lander.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
+from ow_msgs.msg import JointStatesFlag
 from ow_msgs.msg import ToolState as ToolStateMsg
 from ow_sim_bullet.errors import CommandError
 from ow_sim_bullet.tool_tracking import FloatArray, ToolSnapshot
@@ -150,6 +151,14 @@ def transform_msg(frame: JointFrame, angle: float, time_s: float) -> TransformSt
     t.x, t.y, t.z = frame.translation
     r = msg.transform.rotation
     r.x, r.y, r.z, r.w = frame.rotation_at(angle)
+    return msg
+
+
+def joint_flags_msg(time: float, names: Sequence[str], flags: Sequence[bool]) -> JointStatesFlag:
+    """ow_msgs/JointStatesFlag: which joints are locked at sim time ``time`` (s)."""
+    msg = JointStatesFlag(name=list(names), flags=list(flags))
+    msg.header.stamp = stamp(time)
+    msg.header.frame_id = "base_link"
     return msg
 
 

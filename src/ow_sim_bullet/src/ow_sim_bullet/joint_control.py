@@ -98,6 +98,8 @@ class JointController:
         self._ki = np.zeros(n)
         self._kd = np.zeros(n)
         self._i_clamp = np.zeros(n)
+        #: N m s/rad, the implicit step's damper of each locked joint (0: not locked).
+        self._lock = np.zeros(n)
         for joint in self.names:
             self._set_gains_array(joint, gains[joint])
         #: joint -> the trajectory it follows.
@@ -153,6 +155,23 @@ class JointController:
         if applied == position:
             return None
         return ClippedSetpoint(joint, position, applied, lower, upper)
+
+    def release(self, joint: str, position: float) -> None:
+        """Hold ``joint`` at ``position`` (rad) from now, its trajectory cancelled and its
+        integral back to where :meth:`reset` starts it: after a lock is released, the integral
+        wound up against the lock must not throw the joint.
+
+        Raises:
+            CommandError: unknown joint or non-finite position.
+        """
+        self.set_setpoint(joint, position)
+        k = self._joint(joint)
+        held = np.array(self._setpoint)
+        gravity = float(self.gravity_torque(held)[k])
+        preload = self._ki[k] > 0 and not self.gravity_feedforward
+        self._integral[k] = (
+            min(max(gravity, -self._i_clamp[k]), self._i_clamp[k]) if preload else 0.0
+        )
 
     def set_trajectory(self, trajectory: JointTrajectory, now: float) -> list[ClippedSetpoint]:
         """Follow ``trajectory`` on its joints from sim time ``now`` (s), replacing any
@@ -226,10 +245,29 @@ class JointController:
         self._kp[k], self._ki[k], self._kd[k] = gains.p, gains.i, gains.d
         self._i_clamp[k] = self._effort_limit[k] if gains.i_clamp is None else gains.i_clamp
         self._negative_i_clamp = -self._i_clamp
-        #: N m s/rad, d + c: the dampers treated implicitly (diagonal of C).
-        self._dampers = self._kd + self._damping
+        self._update_dampers()
+
+    def _update_dampers(self) -> None:
+        #: N m s/rad, d + c (+ a locked joint's lock): the dampers treated implicitly (diagonal
+        #: of C).
+        self._dampers = self._kd + self._damping + self._lock
         self._dampers.flags.writeable = False
         self._solve_model.armature = self.dt * self._dampers
+
+    def set_locked(self, joints: frozenset[str], lock_damper: float) -> None:
+        """Tell the implicit step which joints a lock holds (the simulation's locks act on
+        them; the controllers still command them as before): each gets ``lock_damper``
+        (N m s/rad) among the dampers, so the step predicts them at rest and the joints around
+        them without the motion they do not make.
+
+        Raises:
+            CommandError: unknown joint.
+        """
+        lock = np.zeros(len(self.names))
+        for joint in joints:
+            lock[self._joint(joint)] = lock_damper
+        self._lock = lock
+        self._update_dampers()
 
     def _joint(self, joint: str) -> int:
         """The index of ``joint`` in :attr:`names`; CommandError for an unknown one."""
@@ -242,7 +280,8 @@ class JointController:
     # ------------------------------------------------------------------ dynamics
     @property
     def dampers(self) -> FloatArray:
-        """(9,) N m s/rad, d + c: the derivative gains plus the URDF damping (read-only)."""
+        """(9,) N m s/rad, d + c: the derivative gains plus the URDF damping, plus the lock of a
+        locked joint (read-only)."""
         return self._dampers
 
     @property
@@ -346,7 +385,7 @@ class JointController:
         if np.count_nonzero(saturated):  # (ndarray.any costs ten times more on 9 values)
             # A saturated joint's effort is its limit, no longer a damper.
             limited = np.minimum(np.maximum(effort, negative_limit), limit)
-            dampers = np.where(saturated, 0.0, self._kd) + self._damping
+            dampers = np.where(saturated, 0.0, self._kd) + self._damping + self._lock
             tau = np.where(saturated, limited, drive)
             v_next = v + dt * self.implicit_solve(q, dampers, tau - bias - dampers * v)
             effort = np.where(saturated, limited, tau_pi + self._kd * (v_set - v_next))

@@ -17,6 +17,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
+from ow_msgs.msg import JointStatesFlag
 from ow_msgs.msg import ToolState as ToolStateMsg
 from ow_sim_bullet import conversions, wire
 from ow_sim_bullet.config import SimConfig
@@ -35,6 +36,8 @@ WIRE_TOPICS: tuple[tuple[str, type], ...] = (
     ("/clock", Clock),
     ("/joint_states", JointState),
     ("~joint_damping", JointState),
+    # OceanWATERS' locked-joint flags (ow_faults), with every joint state.
+    ("/flags/joint_states", JointStatesFlag),
     ("/tf", TFMessage),
     *((f"~{tool}_wrench", WrenchStamped) for tool in TOOLS),
     ("~scoop_tip_ground", PointStamped),
@@ -93,6 +96,7 @@ class SimOutputs:
         self._clock_pub = publishers["/clock"]
         self._joint_pub = publishers["/joint_states"]
         self._damping_pub = publishers["~joint_damping"]
+        self._flags_pub = publishers["/flags/joint_states"]
         self._tf_pub = publishers["/tf"]
         self._wrench_pubs = {tool: publishers[f"~{tool}_wrench"] for tool in TOOLS}
         self._tip_ground_pub = publishers["~scoop_tip_ground"]
@@ -141,6 +145,10 @@ class SimOutputs:
             position, velocity = sample.position, sample.velocity
             self._joint_pub.publish(joint_state, t, position, velocity, sample.effort)
             self._damping_pub.publish(joint_state, t, position, velocity, sample.damping_effort)
+            names, flags = sim.locks.flags()
+            self._flags_pub.publish(
+                wire.genpy_payload, conversions.joint_flags_msg, t, names, flags
+            )
         if self._tf_tick.due(t) or force:
             self._tf_pub.publish(self._tf_wire, t, sample.position)
         if self._wrench_tick.due(t) or force:

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 import pybullet as pb
+from ow_faults.injection import FaultSet
 
 from ow_dem_bridge.api import TerrainForceModel
 from ow_dem_bridge.models import make_model
@@ -36,6 +37,7 @@ from ow_sim_bullet.bullet_terrain import BulletTerrain
 from ow_sim_bullet.carving import TerrainCarver, collision_surface_points
 from ow_sim_bullet.config import PidGains, SimConfig
 from ow_sim_bullet.errors import ConfigError
+from ow_sim_bullet.faults import LOCK_DAMPER, JointLocks, WristFaults
 from ow_sim_bullet.joint_control import FloatArray, JointController
 from ow_sim_bullet.joints import ClippedSetpoint, JointSample
 from ow_sim_bullet.tool_forces import ToolForces
@@ -163,6 +165,9 @@ class BulletSim:
             frames=(*self.link_index, "base_link"),
         )
         self._tool_links = tool_links
+        joint_index = dict(zip(self.names, self._bullet_index, strict=True))
+        self.locks = JointLocks(self.client, self.robot, joint_index)
+        self.wrist_faults = WristFaults(config.noise_seed)
         self.time = 0.0
         self.steps = 0
         self._next_carve = 0.0
@@ -296,6 +301,20 @@ class BulletSim:
         """
         return self.controller.gains(joint)
 
+    def apply_faults(self, faults: FaultSet) -> tuple[frozenset[str], frozenset[str]]:
+        """Lock the joints ``faults`` lock (releasing the others, each held where it is) and
+        fault the wrist sensor as it says (:mod:`ow_sim_bullet.faults`).
+
+        Returns:
+            The joints newly locked and the joints released.
+        """
+        locked, released = self.locks.set(faults.locked_joints)
+        self.controller.set_locked(faults.locked_joints, LOCK_DAMPER)
+        for joint in released:
+            self.controller.release(joint, float(self.sample.position[self.names.index(joint)]))
+        self.wrist_faults.set(faults)
+        return locked, released
+
     def set_terrain(self, heightmap: HeightMap) -> None:
         """Replace the terrain (the old one, with its trenches, is discarded)."""
         self.carver.replace(heightmap)
@@ -378,8 +397,10 @@ class BulletSim:
 
     def wrist_wrench(self) -> tuple[FloatArray, FloatArray]:
         """The wrist force/torque sensor at ``j_dist_pitch``, tared: force N and torque N m
-        about the joint, in ``l_dist`` (:meth:`ToolTracker.wrist_wrench`)."""
-        return self.tracker.wrist_wrench(self.sample)
+        about the joint, in ``l_dist`` (:meth:`ToolTracker.wrist_wrench`), with the injected
+        sensor faults (:class:`~ow_sim_bullet.faults.WristFaults`)."""
+        force, torque = self.tracker.wrist_wrench(self.sample)
+        return self.wrist_faults.apply(force, torque, self.steps)
 
     def gravity_torque(self, q: FloatArray) -> FloatArray:
         """N m, gravity torques (our joint order) at positions q (rad), from pinocchio."""
