@@ -1,20 +1,26 @@
 """The fast validity checks give the answers of the plain ones (no ROS): terrain blocks bound the
 terrain, coarse-to-fine path checks agree with the sequential check, Cartesian lines report and
-stop where they are blocked."""
+stop where they are blocked; batched terrain checks and kinematics agree with pinocchio and the
+per-state checker, kept segment verdicts and IK outcomes never change a plan, paths through the
+unstowed pose are collision-checked."""
 
+import itertools
 import re
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
+from ow_lander.batch_check import BatchKinematics, BatchTerrainCheck
 from ow_lander.collision import ARM_LINKS, TerrainBlocks
 from ow_lander.config import PlannerConfig
-from ow_lander.description import DEFAULT_GROUND_Z, UNSTOWED
+from ow_lander.description import DEFAULT_GROUND_Z, SCOOP_TIP_FRAME, STOWED, UNSTOWED
 from ow_lander.errors import PlanningError
 from ow_lander.model import LanderModel
+from ow_lander.operations import DOCK_CENTRE, DOCK_POUR_HEIGHT, Operations
 from ow_lander.planning import ArmPlanner, CheckContext
 from ow_lander.terrain import HeightMap
-from ow_lander.validity import _coarse_to_fine
+from ow_lander.validity import _coarse_to_fine, densify, segment_steps
 
 
 @pytest.fixture(scope="module")
@@ -22,9 +28,9 @@ def planner():
     return ArmPlanner(LanderModel(), PlannerConfig())
 
 
-def _rough(seed: int, shape=(121, 121), resolution=0.05) -> HeightMap:
+def _rough(seed: int, shape=(121, 121), resolution=0.05, amplitude=0.05) -> HeightMap:
     rng = np.random.default_rng(seed)
-    heights = DEFAULT_GROUND_Z + 0.05 * rng.standard_normal(shape)
+    heights = DEFAULT_GROUND_Z + amplitude * rng.standard_normal(shape)
     return HeightMap(heights, resolution, -3.0, -3.0)
 
 
@@ -149,3 +155,126 @@ def test_plan_straight_is_direct_staged_or_none(planner):
         assert np.array_equal(path[0], start) and np.array_equal(path[-1], goal)
         assert planner.first_invalid(path, ctx, 0.01) is None
     assert {2, "none"} <= kinds
+
+
+def _configurations(model: LanderModel, n: int, seed: int) -> np.ndarray:
+    """(n, 9) rad: random configurations of every joint (antenna too) within the limits."""
+    rng = np.random.default_rng(seed)
+    return rng.uniform(model.lower, model.upper, (n, model.nq))
+
+
+def test_batch_kinematics_places_every_joint_as_pinocchio(planner):
+    model = planner.model
+    Q = _configurations(model, 50, 1)
+    frames = BatchKinematics(model.model).placements(Q, range(1, model.model.njoints))
+    for i, q in enumerate(Q):
+        pin.forwardKinematics(model.model, model.data, q)
+        for j in range(1, model.model.njoints):
+            R, t = frames[j]
+            assert np.allclose(R[i], model.data.oMi[j].rotation, atol=1e-12)
+            assert np.allclose(t[i], model.data.oMi[j].translation, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("terrain", "links", "margin"),
+    [
+        (_rough(1, amplitude=0.3), ARM_LINKS, 0.0),
+        (_rough(2, amplitude=0.3), ("l_shou", "l_prox", "l_dist", "l_wrist"), 0.05),
+        (HeightMap.flat(DEFAULT_GROUND_Z), ARM_LINKS, 0.0),
+        (HeightMap.flat(0.4, half_extent=1.0), ("l_scoop", "l_grinder"), 0.02),
+    ],
+)
+def test_batch_terrain_check_agrees_with_the_per_state_check(planner, terrain, links, margin):
+    model = planner.model
+    Q = _configurations(model, 400, 2)
+    batch = BatchTerrainCheck(model.model, model.collision).below(Q, terrain, links, margin)
+    # The coal model is left out: only the terrain decides, as in the batch.
+    expected = [
+        model.collision_report(q, terrain, links, margin).terrain_link is not None for q in Q
+    ]
+    assert batch.tolist() == expected
+    assert 0 < sum(expected) < len(Q)  # both answers were exercised
+
+
+@pytest.mark.parametrize(
+    "terrain", [_rough(3, amplitude=0.3), _rough(4, (40, 61), 0.1), _rough(5, (7, 5))]
+)
+def test_highest_many_is_highest_for_each_square(terrain):
+    blocks = TerrainBlocks(terrain)
+    rng = np.random.default_rng(6)
+    x = rng.uniform(terrain.origin_x - 1.0, terrain.x_max + 1.0, 300)
+    y = rng.uniform(terrain.origin_y - 1.0, terrain.y_max + 1.0, 300)
+    radius = rng.uniform(0.0, 1.0, 300)
+    many = blocks.highest_many(x, y, radius)
+    single = [blocks.highest(*args) for args in zip(x, y, radius, strict=True)]
+    # Squares too large for the window table get the map's top, an upper bound of the same.
+    exact = many == np.array(single)
+    assert exact.mean() > 0.5
+    assert np.all(many[~exact] == blocks.top)
+
+
+def test_densify_matches_its_definition_segment_by_segment():
+    rng = np.random.default_rng(7)
+    points = rng.uniform(-1.0, 1.0, (6, 6))
+    states = densify(points, 0.01)
+    expected = [points[:1]]
+    for (a, b), n in zip(itertools.pairwise(points), segment_steps(points, 0.01), strict=True):
+        expected.append(a + (np.arange(1, n + 1)[:, None] / n) * (b - a))
+    assert np.array_equal(states, np.concatenate(expected))
+
+
+def test_a_segment_verdict_is_not_kept_across_contexts(planner):
+    start = planner.arm(planner.model.q_from(UNSTOWED))
+    goal = start.copy()
+    goal[1] += 0.4  # lowers the arm towards the ground
+    path = np.vstack([start, goal])
+    base = planner.model.q_from(UNSTOWED)
+    low = CheckContext(base, HeightMap.flat(-1.0))
+    high = CheckContext(base, HeightMap.flat(planner.model.fk(base, SCOOP_TIP_FRAME)[2, 3] - 0.05))
+    assert planner.path_valid(path, low)
+    assert not planner.path_valid(path, high)
+    assert planner.path_valid(path, low)
+    assert planner.first_invalid(path, high) is not None
+
+
+def test_straight_moves_through_the_unstowed_pose_are_checked(planner):
+    ctx = CheckContext(planner.model.q_from(UNSTOWED), HeightMap.flat(DEFAULT_GROUND_Z))
+    rng = np.random.default_rng(3)
+    through_safe = 0
+    for _ in range(400):
+        start, goal = rng.uniform(planner.lower, planner.upper, (2, 6))
+        if not (planner.is_valid(start, ctx) and planner.is_valid(goal, ctx)):
+            continue
+        direct = np.vstack([start, goal])
+        path = planner.plan_straight(start, goal, ctx)
+        if path is None or len(path) < 4:
+            continue
+        # Neither the direct segment nor the staged moves: the path passes the unstowed pose.
+        assert planner.first_invalid(direct, ctx) is not None
+        assert any(np.allclose(planner.unwrap(planner.safe, row), row) for row in path[1:-1])
+        assert np.array_equal(path[0], start) and np.array_equal(path[-1], goal)
+        assert planner.first_invalid(path, ctx, 0.01) is None
+        through_safe += 1
+        if through_safe == 2:
+            break
+    assert through_safe == 2
+
+
+def test_a_kept_ik_outcome_gives_the_plan_a_fresh_planner_makes():
+    # Deliveries to the dock need random IK restarts; their outcome is kept per target. A
+    # planner that delivered before (from elsewhere) plans the same as a fresh one.
+    model = LanderModel()
+    terrain = HeightMap.flat(DEFAULT_GROUND_Z)
+    request = {"use_defaults": True}
+    used = Operations(ArmPlanner(model, PlannerConfig(seed=1)))
+    used.plan("deliver_sample", model.q_from(STOWED), terrain, request)
+    assert used.planner._cartesian._restart_outcomes  # the case this test is about
+    again = used.plan("deliver_sample", model.q_from(UNSTOWED), terrain, request)
+    fresh = Operations(ArmPlanner(LanderModel(), PlannerConfig(seed=1)))
+    first = fresh.plan("deliver_sample", model.q_from(UNSTOWED), terrain, request)
+    assert [s.label for s in again.segments] == [s.label for s in first.segments]
+    for a, b in zip(again.segments, first.segments, strict=True):
+        assert np.array_equal(a.waypoints, b.waypoints)
+    tip = model.fk(used.planner.full(again.end, model.q_from(UNSTOWED)), SCOOP_TIP_FRAME)
+    dock = np.add(DOCK_CENTRE, (0.0, 0.0, DOCK_POUR_HEIGHT))
+    assert np.allclose(tip[:3, 3], dock, atol=1e-3)

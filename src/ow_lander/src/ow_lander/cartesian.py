@@ -20,6 +20,9 @@ from ow_lander.validity import CheckContext, StateChecker, densify, segment_step
 
 FloatArray = npt.NDArray[np.float64]
 
+#: IK targets whose random-restart outcome a planner keeps (the oldest are dropped together).
+RESTART_OUTCOMES_KEPT = 256
+
 
 class CartesianPlanner:
     """IK goals and Cartesian lines of a tool frame (not thread-safe, like the model).
@@ -35,6 +38,9 @@ class CartesianPlanner:
         self.model = checker.model
         self.config = config
         self.stats = stats
+        self._restart_outcomes: dict[
+            tuple[str, bytes, bytes | None, bytes], FloatArray | IKError
+        ] = {}
 
     def solve_ik(
         self,
@@ -48,8 +54,8 @@ class CartesianPlanner:
         (3, 3) if given) in base_link, on the same kinematic branch as ``seed_arm`` (6,) rad.
 
         The target is approached from the seed's own pose in 5 cm steps (each IK seeded by the
-        previous one), so the solution keeps the seed's elbow and wrist branch; seeded random
-        restarts are the fallback.
+        previous one), so the solution keeps the seed's elbow and wrist branch; one IK from the
+        seed and then seeded random restarts (``ik_restarts``) are the fallback.
 
         Raises:
             PlanningError: unreachable, or the solution collides (with the reason).
@@ -59,15 +65,7 @@ class CartesianPlanner:
         arm = self._ik_continuation(frame, target, rotation, seed_arm, ctx)
         if arm is None:
             try:
-                q = self.model.ik(
-                    frame,
-                    target,
-                    checker.full(seed_arm, ctx.base),
-                    rotation=rotation,
-                    joints=ARM_JOINTS,
-                    restarts=self.config.ik_restarts,
-                    seed=self.config.seed,
-                )
+                q = self._ik_anywhere(frame, target, rotation, seed_arm, ctx.base)
             except IKError as error:
                 raise PlanningError(str(error)) from error
             arm = checker.unwrap(checker.arm(q), seed_arm)
@@ -107,6 +105,59 @@ class CartesianPlanner:
                 return None
             arm = checker.unwrap(checker.arm(q), arm)
         return arm
+
+    def _ik_anywhere(
+        self,
+        frame: str,
+        target: FloatArray,
+        rotation: FloatArray | None,
+        seed_arm: FloatArray,
+        base: FloatArray,
+    ) -> FloatArray:
+        """(9,) rad, IK jumping from ``seed_arm`` straight to the target, else from seeded
+        random starts. The random starts do not depend on the arm's state: their outcome for a
+        target is kept (the dock's pour poses are on an elbow branch no continuation reaches,
+        and are asked for on every delivery), so a repeated target costs nothing and gives the
+        answer it gave the first time.
+
+        Raises:
+            IKError: no start converged.
+        """
+        q0 = self.checker.full(seed_arm, base)
+        try:
+            return self.model.ik(
+                frame, target, q0, rotation=rotation, joints=ARM_JOINTS, restarts=0
+            )
+        except IKError:
+            pass
+        others = np.delete(np.asarray(base, dtype=np.float64), self.checker.idx)
+        key = (
+            frame,
+            target.tobytes(),
+            None if rotation is None else np.asarray(rotation, dtype=np.float64).tobytes(),
+            others.tobytes(),
+        )
+        found = self._restart_outcomes.get(key)
+        if found is None:
+            try:
+                found = self.model.ik(
+                    frame,
+                    target,
+                    q0,
+                    rotation=rotation,
+                    joints=ARM_JOINTS,
+                    restarts=self.config.ik_restarts,
+                    seed=self.config.seed,
+                    try_q0=False,
+                )
+            except IKError as error:
+                found = error
+            if len(self._restart_outcomes) >= RESTART_OUTCOMES_KEPT:
+                self._restart_outcomes.clear()
+            self._restart_outcomes[key] = found
+        if isinstance(found, IKError):
+            raise IKError(str(found))
+        return found.copy()
 
     def plan_cartesian(
         self,

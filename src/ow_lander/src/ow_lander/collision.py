@@ -50,6 +50,10 @@ DISABLED_COLLISION_PAIRS: frozenset[frozenset[str]] = frozenset(
 #: bounding-sphere test (a link whose sphere is above the highest point under it is skipped).
 TERRAIN_BLOCK_M = 0.25
 
+#: Largest square of blocks (per side) whose maxima :meth:`TerrainBlocks.highest_many` looks up;
+#: a larger square is bounded by the map's highest point.
+WINDOW_BLOCKS = 6
+
 #: Links of the arm that can hit the terrain, base to tool.
 ARM_LINKS: tuple[str, ...] = (
     "l_shou",
@@ -92,7 +96,7 @@ class CollisionReport:
         return "; ".join(parts) if parts else "collision-free"
 
 
-class _LinkSamples(NamedTuple):
+class LinkSamples(NamedTuple):
     """Terrain sample points of one link: ``points`` (n, 3) m and their bounding sphere
     (``centre`` (3,) m, ``radius`` m), in the frame of ``joint``, the joint moving the link."""
 
@@ -120,7 +124,7 @@ def _sample_points(shape: CollisionShape) -> FloatArray:
 
 def _terrain_samples(
     model: pin.Model, shapes: Mapping[str, tuple[CollisionShape, ...]]
-) -> dict[str, _LinkSamples]:
+) -> dict[str, LinkSamples]:
     """Each link's terrain sample points, in the frame of the joint that moves the link."""
     samples = {}
     for link, link_shapes in shapes.items():
@@ -138,7 +142,7 @@ def _terrain_samples(
         )
         centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
         radius = float(np.max(np.linalg.norm(points - centre, axis=1)))
-        samples[link] = _LinkSamples(link, int(frame.parentJoint), points, centre, radius)
+        samples[link] = LinkSamples(link, int(frame.parentJoint), points, centre, radius)
     return samples
 
 
@@ -167,6 +171,7 @@ class TerrainBlocks:
                 for r in row_starts
             ]
         )
+        self._windows: FloatArray | None = None
 
     def highest(self, x: float, y: float, radius: float) -> float:
         """m, an upper bound of the terrain height over the square of half-side ``radius`` m
@@ -179,6 +184,46 @@ class TerrainBlocks:
         r0 = min(max(int((y - radius - terrain.origin_y) * scale), 0), last_r)
         r1 = min(max(int((y + radius - terrain.origin_y) * scale), 0), last_r)
         return float(self.maxima[r0 : r1 + 1, c0 : c1 + 1].max())
+
+    def highest_many(self, x: FloatArray, y: FloatArray, radius: float | FloatArray) -> FloatArray:
+        """m, :meth:`highest` for many squares at once: ``x``, ``y``, ``radius`` (n,) m (or one
+        radius); squares over more than :data:`WINDOW_BLOCKS` blocks a side get the map's
+        highest point."""
+        terrain, k = self.terrain, self._cells
+        scale = 1.0 / (terrain.resolution * k)
+        last_r, last_c = self.maxima.shape[0] - 1, self.maxima.shape[1] - 1
+
+        def block(v: FloatArray, origin: float, last: int) -> npt.NDArray[np.intp]:
+            return np.clip(np.floor((v - origin) * scale), 0, last).astype(np.intp)
+
+        c0 = block(x - radius, terrain.origin_x, last_c)
+        w = block(x + radius, terrain.origin_x, last_c) - c0
+        r0 = block(y - radius, terrain.origin_y, last_r)
+        h = block(y + radius, terrain.origin_y, last_r) - r0
+        out = np.full(len(c0), self.top)
+        small = (h < WINDOW_BLOCKS) & (w < WINDOW_BLOCKS)
+        out[small] = self._window_maxima()[h[small], w[small], r0[small], c0[small]]
+        return out
+
+    def _window_maxima(self) -> FloatArray:
+        """(K, K, rows, cols) m: [h, w, r, c] is the maximum of blocks r..r+h, c..c+w (K =
+        :data:`WINDOW_BLOCKS`; positions past the grid hold the map's highest point)."""
+        if self._windows is not None:
+            return self._windows
+        m = self.maxima
+        rows, cols = m.shape
+        windows = np.full((WINDOW_BLOCKS, WINDOW_BLOCKS, rows, cols), self.top)
+        over_rows = m
+        for h in range(min(WINDOW_BLOCKS, rows)):
+            if h:
+                over_rows = np.maximum(over_rows[:-1], m[h:])
+            over_both = over_rows
+            for w in range(min(WINDOW_BLOCKS, cols)):
+                if w:
+                    over_both = np.maximum(over_both[:, :-1], over_rows[:, w:])
+                windows[h, w, : rows - h, : cols - w] = over_both
+        self._windows = windows
+        return windows
 
 
 class CollisionChecker:
@@ -208,7 +253,7 @@ class CollisionChecker:
         )
         self._terrain_blocks: TerrainBlocks | None = None
         self._terrain_samples = _terrain_samples(model, read_collision_shapes(urdf_path))
-        self._terrain_link_sets: dict[tuple[str, ...], tuple[_LinkSamples, ...]] = {}
+        self._terrain_link_sets: dict[tuple[str, ...], tuple[LinkSamples, ...]] = {}
 
     def _setup_collision_pairs(self) -> None:
         gm = self.geom_model
@@ -256,6 +301,18 @@ class CollisionChecker:
             terrain_link, depth = self._terrain_penetration(terrain, terrain_links, terrain_margin)
         return CollisionReport(tuple(pairs), terrain_link, depth)
 
+    def terrain_contact(
+        self,
+        q: FloatArray,
+        terrain: HeightMap,
+        terrain_links: Iterable[str] = ARM_LINKS,
+        terrain_margin: float = 0.0,
+    ) -> tuple[str | None, float]:
+        """The terrain part of :meth:`report` alone: (the link reaching deepest below
+        ``terrain`` + ``terrain_margin`` at ``q`` (9,) rad, or None; m below)."""
+        pin.forwardKinematics(self.model, self.data, q)
+        return self._terrain_penetration(terrain, terrain_links, terrain_margin)
+
     def in_collision(
         self,
         q: FloatArray,
@@ -285,12 +342,12 @@ class CollisionChecker:
         # above the highest terrain point (of the whole map, then of the blocks under the
         # sphere) is skipped, and heights are interpolated only under the sample points that
         # could be below the terrain.
-        blocks = self._blocks(terrain)
+        blocks = self.blocks(terrain)
         top_everywhere = blocks.top + terrain_margin
         oMi = self.data.oMi
         deepest: str | None = None
         depth = 0.0
-        for link, joint, local, centre, radius in self._link_samples(terrain_links):
+        for link, joint, local, centre, radius in self.link_samples(terrain_links):
             placement = oMi[joint]
             world = placement.act(centre)
             lowest = world[2] - radius
@@ -312,7 +369,7 @@ class CollisionChecker:
                     break
         return deepest, depth
 
-    def _link_samples(self, links: Iterable[str]) -> tuple[_LinkSamples, ...]:
+    def link_samples(self, links: Iterable[str]) -> tuple[LinkSamples, ...]:
         """The sample points of those of ``links`` that have collision geometry (cached)."""
         key = tuple(links)
         found = self._terrain_link_sets.get(key)
@@ -321,7 +378,7 @@ class CollisionChecker:
             self._terrain_link_sets[key] = found
         return found
 
-    def _blocks(self, terrain: HeightMap) -> TerrainBlocks:
+    def blocks(self, terrain: HeightMap) -> TerrainBlocks:
         """The max-pooled blocks of ``terrain`` (cached for the last map seen)."""
         if self._terrain_blocks is None or self._terrain_blocks.terrain is not terrain:
             self._terrain_blocks = TerrainBlocks(terrain)

@@ -71,6 +71,8 @@ class LanderModel:
         self.effort_limit = np.array(self.model.effortLimit, dtype=np.float64)
         self._full_turn = self.upper - self.lower >= 2 * np.pi - 1e-6
         self.collision = CollisionChecker(self.model, self.data, path)
+        self._frame_ids: dict[str, int] = {}
+        self._joint_columns: dict[tuple[str, ...], npt.NDArray[np.intp]] = {}
 
     # ----------------------------------------------------------------- configuration helpers
     @property
@@ -122,10 +124,25 @@ class LanderModel:
         Raises:
             ModelError: no frame of that name.
         """
-        if not self.model.existFrame(frame):
-            msg = f"unknown frame {frame!r}"
-            raise ModelError(msg)
-        return int(self.model.getFrameId(frame))
+        fid = self._frame_ids.get(frame)
+        if fid is None:
+            if not self.model.existFrame(frame):
+                msg = f"unknown frame {frame!r}"
+                raise ModelError(msg)
+            fid = self._frame_ids[frame] = int(self.model.getFrameId(frame))
+        return fid
+
+    def _columns(self, joints: tuple[str, ...]) -> npt.NDArray[np.intp]:
+        """Positions of ``joints`` in ``q`` (cached: IK asks for the arm's on every waypoint).
+
+        Raises:
+            ModelError: an unknown joint.
+        """
+        cols = self._joint_columns.get(joints)
+        if cols is None:
+            cols = np.array([self.index(j) for j in joints], dtype=np.intp)
+            self._joint_columns[joints] = cols
+        return cols
 
     # ----------------------------------------------------------------------------- kinematics
     def fk(self, q: FloatArray, frame: str) -> FloatArray:
@@ -157,6 +174,7 @@ class LanderModel:
         max_iterations: int = 200,
         restarts: int = 40,
         seed: int = 0,
+        try_q0: bool = True,
     ) -> FloatArray:
         """Damped-least-squares inverse kinematics for the origin of ``frame``.
 
@@ -174,6 +192,8 @@ class LanderModel:
             max_iterations: iterations per start.
             restarts: random starts tried after ``q0``.
             seed: seed of those random starts (same inputs, same answer).
+            try_q0: start at ``q0`` first; when false, only the random starts are tried (their
+                outcome then does not depend on ``q0``'s values of ``joints``).
 
         Returns:
             (9,) rad configuration within the joint limits reaching the target.
@@ -185,12 +205,12 @@ class LanderModel:
         if target.shape != (3,) or not np.all(np.isfinite(target)):
             msg = f"IK target position {position} must be 3 finite numbers"
             raise IKError(msg)
-        cols = np.array([self.index(j) for j in joints], dtype=np.intp)
+        cols = self._columns(tuple(joints))
         fid = self.frame_id(frame)
         # Random starts are drawn only when needed, in the same order: same seed, same answer.
         rng = np.random.default_rng(seed) if restarts > 0 else None
         best = (np.inf, np.inf)
-        for attempt in range(restarts + 1):
+        for attempt in range(0 if try_q0 else 1, restarts + 1):
             q_start = np.array(q0, dtype=np.float64)
             if attempt > 0 and rng is not None:
                 q_start[cols] = rng.uniform(self.lower[cols], self.upper[cols])

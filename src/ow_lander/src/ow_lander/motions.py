@@ -22,7 +22,6 @@ from ow_lander.description import (
     GRINDER_TIP_FRAME,
     SCOOP_LINK,
     SCOOP_TIP_FRAME,
-    UNSTOWED,
 )
 from ow_lander.errors import PlanningError
 from ow_lander.planning import ArmPlanner
@@ -168,9 +167,10 @@ class ArmMotions:
     ) -> FloatArray:
         """Free-space path to ``goal``: direct, else through the operation's reference pose
         (as OceanWATERS' joint-space pre-configurations), else through the unstowed "safe"
-        configuration (the paper's reason for having one), else RRT*. The path may end a whole
-        turn of the hand or scoop yaw away from ``goal`` (the same pose): continue from its
-        last row."""
+        configuration (the paper's reason for having one), else staged straight moves (directly
+        or through that configuration, see ArmPlanner.plan_straight), else RRT*. The path may
+        end a whole turn of the hand or scoop yaw away from ``goal`` (the same pose): continue
+        from its last row."""
         planner = self.planner
         # The hand and scoop yaw turn a full turn either way: the goal as solved (near the
         # operation's reference turn) or the same pose a whole turn nearer to where the joints
@@ -179,7 +179,7 @@ class ArmMotions:
         near = planner.unwrap(goal, start)
         if not np.allclose(near, goal):
             goals.append(near)
-        safe = np.array([UNSTOWED[j] for j in ARM_JOINTS])
+        safe = planner.safe
         for end in goals:
             if planner.path_valid(np.vstack([start, end]), ctx):
                 planner.stats.direct_segments += 1
@@ -192,6 +192,11 @@ class ArmMotions:
                 ):
                     planner.stats.direct_segments += len(vias) + 1
                     return path
+        # Staged straight moves (directly or through the safe pose) before a sampled path.
+        for end in goals:
+            straight = planner.plan_straight(start, end, ctx)
+            if straight is not None:
+                return straight
         return planner.plan_free(start, goal, ctx)
 
     def start(self, q: FloatArray, terrain: HeightMap | None) -> FloatArray:
@@ -221,8 +226,11 @@ class ArmMotions:
         tools = (SCOOP_LINK, GRINDER_LINK)
         if terrain is None:
             return None
-        near = self.model.collision_report(q, terrain, tools, CONTACT_CLEARANCE)
-        if near.terrain_link is None and self.planner.is_valid(arm, self.context(q, terrain)):
+        # The terrain alone: the contacts are checked by the validity checks below.
+        near_link, near_depth = self.model.collision.terrain_contact(
+            q, terrain, tools, CONTACT_CLEARANCE
+        )
+        if near_link is None and self.planner.is_valid(arm, self.context(q, terrain)):
             return None
         ctx = CheckContext(
             np.asarray(q, dtype=np.float64),
@@ -233,8 +241,8 @@ class ArmMotions:
         if not self.planner.is_valid(arm, ctx):
             msg = f"the arm's current configuration is invalid: {self.planner.explain(arm, ctx)}"
             raise PlanningError(msg)
-        frame = SCOOP_TIP_FRAME if near.terrain_link == SCOOP_LINK else GRINDER_TIP_FRAME
-        penetration = max(near.terrain_penetration - CONTACT_CLEARANCE, 0.0)
+        frame = SCOOP_TIP_FRAME if near_link == SCOOP_LINK else GRINDER_TIP_FRAME
+        penetration = max(near_depth - CONTACT_CLEARANCE, 0.0)
         here = self.position(arm, q, frame)
         rotation = self.rotation(arm, q, frame)
         target = here + np.array([0.0, 0.0, penetration + LIFT_OFF_CLEARANCE])
@@ -247,7 +255,7 @@ class ArmMotions:
             path = self._shoulder_lift(arm, q, frame, target[2], ctx, error)
         if not self.planner.is_valid(path[-1], self.context(q, terrain)):
             end = self.planner.explain(path[-1], self.context(q, terrain))
-            msg = f"lifting {near.terrain_link} off the terrain did not free the arm: {end}"
+            msg = f"lifting {near_link} off the terrain did not free the arm: {end}"
             raise PlanningError(msg)
         return path
 

@@ -27,6 +27,7 @@ from ow_lander.operation_plan import OperationPlan, check_finite
 from ow_lander.planning import ArmPlanner
 from ow_lander.terrain import HeightMap
 from ow_lander.trajectory import PathSegment
+from ow_lander.validity import CheckContext
 
 __all__ = [
     "DOCK_CENTRE",
@@ -161,28 +162,26 @@ class Operations:
         start = self.motions.start(q, terrain)
         ctx = self.motions.context(q, terrain)
         heading = math.atan2(point[1] - SHOULDER_XY[1], point[0] - SHOULDER_XY[0])
-        errors = []
-        goals = []
+        errors: list[str] = []
+        goals: list[tuple[FloatArray, FloatArray]] = []
         # The scoop's heading over the pour point is free: the first heading (in order of
         # preference) that straight joint moves reach and tip is taken; a sampled path (RRT*)
-        # only when no heading has one.
-        for phi in (0.0, heading, math.pi - math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2):
-            x_axis = np.array([math.cos(phi), math.sin(phi), 0.0])
-            z_axis = np.array([0.0, 0.0, -1.0])
-            carry_R = np.column_stack([x_axis, np.cross(z_axis, x_axis), z_axis])
-            pour_R = carry_R @ ry(-POUR_TILT)
-            try:
-                carry = self.planner.solve_ik(SCOOP_TIP_FRAME, point, carry_R, start, ctx)
-                pour = self.planner.solve_ik(SCOOP_TIP_FRAME, point, pour_R, carry, ctx)
-            except PlanningError as error:
-                errors.append(str(error))
-                continue
-            # The tip first: a heading whose pour needs a detour is usually refuted there.
-            tip = self.planner.plan_straight(carry, pour, ctx)
-            approach = None if tip is None else self.planner.plan_straight(start, carry, ctx)
-            if approach is not None and tip is not None:
-                return self._delivery(approach, tip, p)
-            goals.append((carry, pour))
+        # only when no heading has one. IK follows the arm from its own pose, then from the
+        # unstowed one (an arm left tipped at a discard point has its wrist on a branch whose
+        # carrying poses touch the hand).
+        headings = (0.0, heading, math.pi - math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2)
+        for seed in (start, self.planner.safe):
+            for phi in headings:
+                solved = self._carry_and_pour(point, phi, seed, ctx, errors)
+                if solved is None:
+                    continue
+                carry, pour = solved
+                # The tip first: a heading whose pour needs a detour is usually refuted there.
+                tip = self.planner.plan_straight(carry, pour, ctx)
+                approach = None if tip is None else self.planner.plan_straight(start, carry, ctx)
+                if approach is not None and tip is not None:
+                    return self._delivery(approach, tip, p)
+                goals.append((carry, pour))
         for carry, pour in goals:
             try:
                 approach = self.planner.plan_free(start, carry, ctx)
@@ -239,6 +238,29 @@ class Operations:
         goal = self.planner.solve_ik(SCOOP_TIP_FRAME, position, rotation, start, ctx)
         path = self.planner.plan_free(start, goal, ctx)
         return OperationPlan("move_cartesian", [PathSegment("move", path)], {})
+
+    def _carry_and_pour(
+        self,
+        point: FloatArray,
+        heading: float,
+        seed: FloatArray,
+        ctx: CheckContext,
+        errors: list[str],
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """(carry, pour) (6,) rad: the scoop upright with its mouth along ``heading`` rad, then
+        tipped, its tip at ``point`` (3,) m, IK from ``seed``; None (the reason added to
+        ``errors``) when either is unreachable or collides."""
+        x_axis = np.array([math.cos(heading), math.sin(heading), 0.0])
+        z_axis = np.array([0.0, 0.0, -1.0])
+        carry_R = np.column_stack([x_axis, np.cross(z_axis, x_axis), z_axis])
+        pour_R = carry_R @ ry(-POUR_TILT)
+        solve = self.planner.solve_ik
+        try:
+            carry = solve(SCOOP_TIP_FRAME, point, carry_R, seed, ctx)
+            return carry, solve(SCOOP_TIP_FRAME, point, pour_R, carry, ctx)
+        except PlanningError as error:
+            errors.append(str(error))
+            return None
 
     @staticmethod
     def _delivery(approach: FloatArray, tip: FloatArray, p: dict[str, Any]) -> OperationPlan:

@@ -21,6 +21,7 @@ import numpy.typing as npt
 
 from ow_lander.cartesian import CartesianPlanner
 from ow_lander.config import PlannerConfig
+from ow_lander.description import ARM_JOINTS, UNSTOWED
 from ow_lander.errors import PlanningError
 from ow_lander.model import LanderModel
 from ow_lander.plan_stats import PlanStats
@@ -56,6 +57,8 @@ class ArmPlanner:
         self.lower = self.checker.lower
         self.upper = self.checker.upper
         self.velocity_limits = model.velocity_limit[self.idx].copy()
+        #: (6,) rad, the unstowed ("safe") pose free-space motions may pass through.
+        self.safe = np.array([UNSTOWED[j] for j in ARM_JOINTS])
 
     # ------------------------------------------------------------------------------ states
     def full(self, arm: FloatArray, base: FloatArray) -> FloatArray:
@@ -126,7 +129,8 @@ class ArmPlanner:
         """A collision-free joint-space path from ``start`` to ``goal`` (both (6,) rad).
 
         The direct segment is kept when it is valid at the joint resolution; then two staged
-        straight moves (wrist first or shoulder first); otherwise RRT*
+        straight moves (wrist first or shoulder first); then the same through the unstowed
+        pose (:meth:`plan_straight`); otherwise RRT*
         (seeded, capped by iterations, time and a cost threshold) and a greedy shortcut; when
         RRT* finds nothing within its caps, a seeded RRTConnect search for any valid path
         (``connect_time_limit_s``), shortened the same way.
@@ -172,18 +176,42 @@ class ArmPlanner:
     def plan_straight(
         self, start: FloatArray, goal: FloatArray, ctx: CheckContext
     ) -> FloatArray | None:
-        """The first two steps of :meth:`plan_free` alone: the direct segment ``start`` ->
+        """The straight-move steps of :meth:`plan_free` alone: the direct segment ``start`` ->
         ``goal`` ((6,) rad, both valid) when it is valid, else the cheaper valid pair of staged
-        straight moves; None when neither is, for a caller that prefers another goal to a
-        sampled path."""
+        straight moves, else the same two steps to the unstowed pose and from there on (the
+        paper's reason for having a "safe" configuration); None when none is, for a caller that
+        prefers another goal to a sampled path."""
+        path = self._direct_or_staged(start, goal, ctx)
+        if path is None:
+            path = self._via_safe(start, goal, ctx)
+        if path is not None:
+            self.stats.direct_segments += len(path) - 1
+        return path
+
+    def _direct_or_staged(
+        self, start: FloatArray, goal: FloatArray, ctx: CheckContext
+    ) -> FloatArray | None:
         direct = np.vstack([start, goal])
         if self.checker.path_valid(direct, ctx):
-            self.stats.direct_segments += 1
             return direct
-        staged = self._staged(start, goal, ctx)
-        if staged is not None:
-            self.stats.direct_segments += 2
-        return staged
+        return self._staged(start, goal, ctx)
+
+    def _via_safe(
+        self, start: FloatArray, goal: FloatArray, ctx: CheckContext
+    ) -> FloatArray | None:
+        """Direct or staged moves to the unstowed pose (its yaws turned nearest to ``goal``) and
+        from there to ``goal``, or None."""
+        safe = self.checker.unwrap(self.safe, goal)
+        # Not when either end is the safe pose already (up to whole turns of the yaws).
+        if np.allclose(self.checker.unwrap(start, safe), safe) or np.allclose(safe, goal):
+            return None
+        if not self.checker.is_valid(safe, ctx):
+            return None
+        first = self._direct_or_staged(start, safe, ctx)
+        if first is None:
+            return None
+        second = self._direct_or_staged(safe, goal, ctx)
+        return None if second is None else np.vstack([first, second[1:]])
 
     def _staged(self, start: FloatArray, goal: FloatArray, ctx: CheckContext) -> FloatArray | None:
         """Two straight joint moves, as an operator would: the wrist (distal pitch, hand and

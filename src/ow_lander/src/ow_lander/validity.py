@@ -12,18 +12,21 @@ pinocchio order (see :mod:`ow_lander.model`).
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
+from ow_lander.batch_check import BatchTerrainCheck
 from ow_lander.collision import ARM_LINKS
 from ow_lander.description import ARM_JOINTS
 from ow_lander.model import LanderModel
 from ow_lander.terrain import HeightMap
 
 FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
 
 #: rad, how far beyond a joint limit a measured configuration may lie and still be planned from,
 #: as if on the limit. A joint driven onto its hard stop rests on it or a hair beyond (the
@@ -53,17 +56,22 @@ def densify(waypoints: FloatArray, resolution: float) -> FloatArray:
     """(m, k) states along the polyline ``waypoints`` (n, k) with no joint step above
     ``resolution`` rad; every waypoint is kept."""
     points = np.asarray(waypoints, dtype=np.float64)
-    out = [points[:1]]
-    for a, b, n in zip(points[:-1], points[1:], segment_steps(points, resolution), strict=True):
-        w = np.arange(1, n + 1)[:, None] / n
-        out.append(a + w * (b - a))
-    return np.concatenate(out)
+    steps = np.array(segment_steps(points, resolution), dtype=np.intp)
+    if not len(steps):
+        return points[:1].copy()
+    # State i of segment s is points[s] + (i / n_s) * (points[s + 1] - points[s]), i = 1..n_s.
+    segment = np.repeat(np.arange(len(steps)), steps)
+    first = np.cumsum(steps) - steps
+    fraction = (np.arange(len(segment)) - first[segment] + 1) / steps[segment]
+    delta = points[1:] - points[:-1]
+    out = points[segment] + fraction[:, None] * delta[segment]
+    return np.concatenate([points[:1], out])
 
 
 def segment_steps(waypoints: FloatArray, resolution: float) -> list[int]:
     """How many states :func:`densify` puts on each segment of ``waypoints`` (n, k)."""
     largest = np.abs(np.diff(waypoints, axis=0)).max(axis=1, initial=0.0)
-    return [max(1, math.ceil(float(d) / resolution - 1e-9)) for d in largest]
+    return np.maximum(1, np.ceil(largest / resolution - 1e-9)).astype(np.intp).tolist()
 
 
 def _coarse_to_fine(n: int) -> npt.NDArray[np.intp]:
@@ -92,6 +100,9 @@ class StateChecker:
         self.upper = model.upper[self.idx].copy()
         self._lower_tol = self.lower - 1e-9
         self._upper_tol = self.upper + 1e-9
+        self._terrain_check = BatchTerrainCheck(model.model, model.collision)
+        self._verdict_ctx: CheckContext | None = None
+        self._verdicts: dict[tuple[bytes, bytes, float], bool] = {}
         #: (index, lower, upper) of the joints whose range spans a full turn.
         self._full_turn = [
             (j, float(self.lower[j]), float(self.upper[j]))
@@ -154,21 +165,63 @@ class StateChecker:
         self, waypoints: FloatArray, ctx: CheckContext, resolution: float | None = None
     ) -> bool:
         """True when every state along the polyline at ``resolution`` rad (default: the
-        checker's own) is valid: the states of :meth:`first_invalid`, checked coarse to fine, so
-        that a blocked motion is usually rejected after a few checks."""
-        states = densify(waypoints, resolution or self.resolution)
-        return self.first_invalid_index(states[_coarse_to_fine(len(states))], ctx) is None
+        checker's own) is valid: the states of :meth:`first_invalid`. Segment by segment, each
+        segment's limits and terrain at once, then its contacts coarse to fine, so that a
+        blocked motion is usually rejected after a few checks. A segment's verdict is kept
+        while ``ctx`` is the context asked about (a plan tries the same legs, e.g. to the
+        unstowed pose, in several combinations)."""
+        resolution = resolution or self.resolution
+        points = np.asarray(waypoints, dtype=np.float64)
+        verdicts = self._verdicts_in(ctx)
+        for a, b in itertools.pairwise(points):
+            key = (a.tobytes(), b.tobytes(), resolution)
+            valid = verdicts.get(key)
+            if valid is None:
+                states = densify(np.vstack([a, b]), resolution)
+                valid = not self._limit_or_terrain_invalid(states, ctx).any() and (
+                    self._first_contact(states[_coarse_to_fine(len(states))], ctx, len(states))
+                    is None
+                )
+                verdicts[key] = valid
+            if not valid:
+                return False
+        return len(points) > 1 or self.first_invalid_index(points, ctx) is None
+
+    def _verdicts_in(self, ctx: CheckContext) -> dict[tuple[bytes, bytes, float], bool]:
+        """The segment verdicts kept for ``ctx`` (those of any other context are dropped)."""
+        if self._verdict_ctx is not ctx:
+            self._verdict_ctx = ctx
+            self._verdicts = {}
+        return self._verdicts
 
     def first_invalid_index(self, states: FloatArray, ctx: CheckContext) -> int | None:
         """The index of the first invalid row of ``states`` (m, 6) rad, or None."""
-        inside = np.all((states >= self._lower_tol) & (states <= self._upper_tol), axis=1)
+        bad = np.flatnonzero(self._limit_or_terrain_invalid(states, ctx))
+        end = int(bad[0]) if len(bad) else len(states)
+        contact = self._first_contact(states, ctx, end)
+        if contact is not None:
+            return contact
+        return end if len(bad) else None
+
+    def _limit_or_terrain_invalid(self, states: FloatArray, ctx: CheckContext) -> BoolArray:
+        """(m,) True where a row of ``states`` (m, 6) rad is beyond a joint limit or has a
+        checked link below the terrain (all rows at once)."""
+        states = np.asarray(states, dtype=np.float64)
+        bad = ~np.all((states >= self._lower_tol) & (states <= self._upper_tol), axis=1)
+        if ctx.terrain is not None and len(states):
+            Q = np.tile(np.asarray(ctx.base, dtype=np.float64), (len(states), 1))
+            Q[:, self.idx] = states
+            bad |= self._terrain_check.below(Q, ctx.terrain, ctx.terrain_links, ctx.terrain_margin)
+        return bad
+
+    def _first_contact(self, states: FloatArray, ctx: CheckContext, end: int) -> int | None:
+        """The index of the first of the rows ``states[:end]`` (6,) rad where links touch each
+        other, the lander body or the dock, or None."""
         q = np.array(ctx.base, dtype=np.float64)
         in_collision = self.model.in_collision
-        for i, (arm, ok) in enumerate(zip(states, inside.tolist(), strict=True)):
-            if not ok:
-                return i
-            q[self.idx] = arm
-            if in_collision(q, ctx.terrain, ctx.terrain_links, ctx.terrain_margin):
+        for i in range(end):
+            q[self.idx] = states[i]
+            if in_collision(q):
                 return i
         return None
 
