@@ -16,7 +16,12 @@ from std_msgs.msg import Float64
 
 from ow_msgs.msg import JointStatesFlag
 from ow_msgs.srv import SetPidGains
-from owl_msgs.msg import ArmEndEffectorForceTorque
+from owl_msgs.msg import (
+    ArmEndEffectorForceTorque,
+    ArmFaultsStatus,
+    PanTiltFaultsStatus,
+    SystemFaultsStatus,
+)
 
 
 class Latest:
@@ -48,6 +53,7 @@ def position(msg: JointState, joint: str) -> float:
 @pytest.fixture(scope="module")
 def stack(ros_stack):
     ros_stack.start_node("ow_faults", "faults", wait_for_services=["/faults/set_parameters"])
+    ros_stack.start_node("ow_faults", "detector", wait_for_topics=["/system_faults_status"])
     ros_stack.start_node(
         "ow_sim_bullet",
         "sim",
@@ -59,6 +65,9 @@ def stack(ros_stack):
     ros_stack.joints = Latest("/joint_states", JointState)
     ros_stack.flags = Latest("/flags/joint_states", JointStatesFlag)
     ros_stack.wrist = Latest("/arm_end_effector_force_torque", ArmEndEffectorForceTorque)
+    ros_stack.arm = Latest("/arm_faults_status", ArmFaultsStatus)
+    ros_stack.pan_tilt = Latest("/pan_tilt_faults_status", PanTiltFaultsStatus)
+    ros_stack.system = Latest("/system_faults_status", SystemFaultsStatus)
     return ros_stack
 
 
@@ -76,6 +85,10 @@ def test_a_locked_joint_is_flagged_and_does_not_follow_its_command(stack):
     flags = stack.flags.wait_for(lambda m: any(m.flags), "a locked joint's flag")
     assert list(flags.name) == sorted(flags.name)
     assert [n for n, f in zip(flags.name, flags.flags, strict=True) if f] == ["j_shou_pitch"]
+    stack.arm.wait_for(lambda m: m.value == ArmFaultsStatus.HARDWARE, "HARDWARE")
+    stack.system.wait_for(
+        lambda m: m.value == SystemFaultsStatus.ARM_EXECUTION_ERROR, "ARM_EXECUTION_ERROR"
+    )
     start = position(later(stack, 0.1), "j_shou_pitch")
     deadline = time.monotonic() + 10
     while command.get_num_connections() == 0 and time.monotonic() < deadline:
@@ -85,8 +98,24 @@ def test_a_locked_joint_is_flagged_and_does_not_follow_its_command(stack):
 
     stack.client.update_configuration({"shou_pitch_joint_locked_failure": False})
     stack.flags.wait_for(lambda m: not any(m.flags), "the flag cleared")
+    stack.system.wait_for(lambda m: m.value == 0, "no system fault")
     command.publish(Float64(start - 0.2))
     assert position(later(stack, 4.0), "j_shou_pitch") == pytest.approx(start - 0.2, abs=2e-3)
+
+
+def test_antenna_locks_set_the_pan_tilt_bits(stack):
+    stack.client.update_configuration({"ant_pan_joint_locked_failure": True})
+    stack.pan_tilt.wait_for(lambda m: m.value == PanTiltFaultsStatus.PAN_JOINT_LOCKED, "PAN")
+    stack.client.update_configuration({"ant_tilt_joint_locked_failure": True})
+    both = PanTiltFaultsStatus.PAN_JOINT_LOCKED | PanTiltFaultsStatus.TILT_JOINT_LOCKED
+    stack.pan_tilt.wait_for(lambda m: m.value == both, "PAN and TILT")
+    stack.system.wait_for(
+        lambda m: m.value == SystemFaultsStatus.PAN_TILT_EXECUTION_ERROR, "PAN_TILT_EXECUTION_ERROR"
+    )
+    stack.client.update_configuration(
+        {"ant_pan_joint_locked_failure": False, "ant_tilt_joint_locked_failure": False}
+    )
+    stack.pan_tilt.wait_for(lambda m: m.value == 0, "no pan/tilt fault")
 
 
 def test_ft_zero_signal_then_bias(stack):
@@ -94,6 +123,7 @@ def test_ft_zero_signal_then_bias(stack):
     zero = stack.wrist.wait_for(lambda m: m.value.force.z == 0.0, "a zero F/T signal")
     f, t = zero.value.force, zero.value.torque
     assert (f.x, f.y, f.z, t.x, t.y, t.z) == (0.0,) * 6
+    stack.arm.wait_for(lambda m: m.value == ArmFaultsStatus.NO_FORCE_DATA, "NO_FORCE_DATA")
     stack.client.update_configuration({"zero_signal_failure": False, "signal_bias_failure": 0.5})
     biased = stack.wrist.wait_for(lambda m: m.value.force.z != 0.0, "a biased F/T signal")
     # the arm is at rest, stowed, touching nothing: the true reading is ~0
@@ -148,6 +178,17 @@ def test_dynparam_from_a_shell_refuses_bad_input_and_sets_good(stack):
     assert stack.client.get_configuration(timeout=10)["high_power_draw"] == 200.0
 
 
+def served(pid: Client, expected: dict) -> dict:
+    """The server's gains once they are ``expected`` (the client learns changes by topic)."""
+    deadline = time.monotonic() + 10
+    while True:
+        config = pid.get_configuration(timeout=10)
+        now = {k: config[k] for k in expected}
+        if now == expected or time.monotonic() > deadline:
+            return now
+        time.sleep(0.02)
+
+
 def test_pid_gains_are_served_and_partial_requests_keep_the_rest(stack):
     pid = Client("/hand_yaw_position_controller/pid", timeout=30)
     gains = pid.get_configuration(timeout=10)
@@ -156,10 +197,10 @@ def test_pid_gains_are_served_and_partial_requests_keep_the_rest(stack):
     set_gains = stack.service("/sim/set_pid_gains", SetPidGains)
     response = set_gains(joint="j_hand_yaw", p=150.0)
     assert response.success, response.message
-    now = pid.get_configuration(timeout=10)
-    assert (now["p"], now["i"], now["d"], now["i_clamp"]) == (150.0, 0.01, 10.0, gains["i_clamp"])
+    expected = {"p": 150.0, "i": 0.01, "d": 10.0, "i_clamp": gains["i_clamp"]}
+    assert served(pid, expected) == expected
     response = set_gains(joint="j_hand_yaw", i=0.0, set=["i"])
-    assert response.success and pid.get_configuration(timeout=10)["i"] == 0.0
+    assert response.success and served(pid, {**expected, "i": 0.0})["i"] == 0.0
     pid.update_configuration({"p": 100.0, "i": 0.01})
     assert "p 100 i 0.01 d 10" in set_gains(joint="j_hand_yaw", d=10.0).message
     with pytest.raises(DynamicReconfigureCallbackException) as error:

@@ -1,0 +1,148 @@
+"""``rosrun ow_faults detector``: OceanWATERS' fault telemetry and FaultClear (rospy wiring)."""
+
+from __future__ import annotations
+
+import sys
+import threading
+from functools import partial
+from typing import Any
+
+import actionlib
+import rospy
+from actionlib_msgs.msg import GoalStatusArray
+
+from ow_faults.detection import FaultDetector, FaultStatus, action_group
+from ow_faults.errors import FaultError
+from ow_faults.listener_node import FaultsListener
+from ow_lander.actions import ARM_ACTIONS
+from ow_msgs.msg import JointStatesFlag
+from owl_msgs.msg import (
+    ArmEndEffectorForceTorque,
+    ArmFaultsStatus,
+    BatteryStateOfCharge,
+    BatteryTemperature,
+    FaultClearAction,
+    PanTiltFaultsStatus,
+    PowerFaultsStatus,
+    SystemFaultsStatus,
+)
+
+#: The action servers whose goals make goal errors (arm_services and pan_tilt serve them).
+ACTIONS = (*ARM_ACTIONS, "PanTiltMoveJoints", "PanTiltMoveCartesian")
+#: (topic, message class, FaultStatus field) of the four outputs.
+OUTPUTS = (
+    ("/arm_faults_status", ArmFaultsStatus, "arm"),
+    ("/pan_tilt_faults_status", PanTiltFaultsStatus, "pan_tilt"),
+    ("/power_faults_status", PowerFaultsStatus, "power"),
+    ("/system_faults_status", SystemFaultsStatus, "system"),
+)
+
+
+class DetectorNode:
+    """Publishes OceanWATERS' fault bitmasks (:mod:`ow_faults.detection` has the rules).
+
+    Subscribes: ``/flags/joint_states`` (ow_msgs/JointStatesFlag, locked joints);
+        ``/arm_end_effector_force_torque`` (owl_msgs/ArmEndEffectorForceTorque, its arrival);
+        ``/battery_state_of_charge`` (owl_msgs/BatteryStateOfCharge, 0-1);
+        ``/battery_temperature`` (owl_msgs/BatteryTemperature, degrees C);
+        ``/faults/parameter_updates`` (dynamic_reconfigure/Config: injected F/T zero signal,
+        ``auto_clear_goal_errors``); ``/<Action>/status`` (actionlib_msgs/GoalStatusArray) of
+        the arm, task and pan/tilt actions.
+    Publishes (latched, on every change; ``header.frame_id`` "world", stamp: the simulation
+        time of the input that changed it): ``/arm_faults_status`` (owl_msgs/ArmFaultsStatus),
+        ``/pan_tilt_faults_status`` (owl_msgs/PanTiltFaultsStatus), ``/power_faults_status``
+        (owl_msgs/PowerFaultsStatus), ``/system_faults_status`` (owl_msgs/SystemFaultsStatus).
+    Actions: ``FaultClear`` (owl_msgs/FaultClear): clears one *_GOAL_ERROR (2, 8, 16 or 64);
+        another value is rejected naming it.
+    """
+
+    def __init__(self) -> None:
+        self.detector = FaultDetector()
+        self._lock = threading.Lock()
+        self._publishers = [
+            (rospy.Publisher(topic, cls, queue_size=10, latch=True), cls, field)
+            for topic, cls, field in OUTPUTS
+        ]
+        self._publish(self.detector.status, rospy.Time(0))
+        self.listener = FaultsListener(partial(self._update, "on_injected"), "detector")
+        rospy.Subscriber("/flags/joint_states", JointStatesFlag, self._on_flags, queue_size=10)
+        rospy.Subscriber(
+            "/arm_end_effector_force_torque",
+            ArmEndEffectorForceTorque,
+            lambda m: self._update("on_wrist", m.header.stamp.to_sec(), stamp=m.header.stamp),
+            queue_size=10,
+        )
+        rospy.Subscriber(
+            "/battery_state_of_charge",
+            BatteryStateOfCharge,
+            lambda m: self._update("on_soc", m.value, stamp=m.header.stamp),
+            queue_size=10,
+        )
+        rospy.Subscriber(
+            "/battery_temperature",
+            BatteryTemperature,
+            lambda m: self._update("on_temperature", m.value, stamp=m.header.stamp),
+            queue_size=10,
+        )
+        for action in ACTIONS:
+            rospy.Subscriber(
+                f"/{action}/status",
+                GoalStatusArray,
+                partial(self._on_status, action),
+                queue_size=10,
+            )
+        self.clear_server = actionlib.ActionServer(
+            "FaultClear", FaultClearAction, self._on_clear, auto_start=False
+        )
+        self.clear_server.start()
+
+    def _on_flags(self, msg: JointStatesFlag) -> None:
+        stamp = msg.header.stamp
+        self._update("on_joint_flags", msg.name, msg.flags, stamp.to_sec(), stamp=stamp)
+
+    def _on_status(self, action: str, msg: GoalStatusArray) -> None:
+        if not msg.status_list or action_group(action) is None:
+            return
+        newest = max(msg.status_list, key=lambda s: s.goal_id.stamp.to_sec())
+        self._update("on_goal_status", action, newest.goal_id.id, newest.status)
+
+    def _update(self, rule: str, *args: Any, stamp: Any = None) -> None:
+        with self._lock:
+            if getattr(self.detector, rule)(*args):
+                self._publish(self.detector.status, stamp or rospy.Time.now())
+
+    def _publish(self, status: FaultStatus, stamp: Any) -> None:
+        for publisher, cls, field in self._publishers:
+            msg = cls(value=getattr(status, field))
+            msg.header.stamp = stamp
+            msg.header.frame_id = "world"
+            publisher.publish(msg)
+
+    def _on_clear(self, handle: Any) -> None:
+        fault = handle.get_goal().fault
+        with self._lock:
+            try:
+                changed = self.detector.clear(fault)
+            except FaultError as error:
+                handle.set_rejected(text=f"FaultClear: {error}")
+                return
+            if changed:
+                self._publish(self.detector.status, rospy.Time.now())
+        handle.set_accepted()
+        handle.set_succeeded(text=f"cleared goal error {fault}")
+
+
+def main() -> int:
+    """Run the detector until shutdown."""
+    rospy.init_node("detector")
+    DetectorNode()
+    rospy.loginfo(
+        "detector: publishing /arm_faults_status, /pan_tilt_faults_status, "
+        "/power_faults_status, /system_faults_status"
+    )
+    rospy.spin()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
