@@ -7,6 +7,7 @@ from ow_lander.config import PlannerConfig
 from ow_lander.description import DEFAULT_GROUND_Z, UNSTOWED
 from ow_lander.errors import PlanningError
 from ow_lander.model import LanderModel
+from ow_lander.operations import Operations
 from ow_lander.planning import ArmPlanner, CheckContext
 from ow_lander.terrain import HeightMap
 from ow_lander.validity import densify
@@ -73,3 +74,20 @@ def test_invalid_goal_is_explained(planner, ctx):
     goal[1] = 5.0
     with pytest.raises(PlanningError, match=r"j_shou_pitch=5\.000 rad is outside"):
         planner.plan_free(start, goal, ctx)
+
+
+def test_deliveries_from_the_tipped_discard_pose_need_no_sampled_path():
+    # Left tipped at the discard point, the arm's wrist is on a branch whose carrying poses touch
+    # the hand: the IK also starts from the unstowed pose, and the approach may pass it.
+    model = LanderModel()
+    ops = Operations(ArmPlanner(model, PlannerConfig()))
+    terrain = HeightMap.flat(DEFAULT_GROUND_Z)
+    discard = {"x": 1.3, "y": 0.9, "z": 0.4}
+    q = model.q_from(UNSTOWED)
+    tipped = ops.planner.full(ops.plan("deliver_sample", q, terrain, discard).end, q)
+    ctx = CheckContext(tipped, terrain)
+    for request in (discard, {"use_defaults": True}):
+        plan = ops.plan("deliver_sample", tipped, terrain, request)
+        for segment in plan.segments:
+            assert ops.planner.first_invalid(segment.waypoints, ctx, 0.01) is None
+    assert ops.planner.stats.rrt_segments == 0

@@ -301,6 +301,11 @@ class CollisionChecker:
             terrain_link, depth = self._terrain_penetration(terrain, terrain_links, terrain_margin)
         return CollisionReport(tuple(pairs), terrain_link, depth)
 
+    def touches(self, q: FloatArray) -> bool:
+        """True when links of ``q`` (9,) rad touch each other, the lander body or the dock (the
+        terrain is not looked at); stops at the first contact."""
+        return bool(pin.computeCollisions(self.model, self.data, self._broadphase, q, True))
+
     def terrain_contact(
         self,
         q: FloatArray,
@@ -321,7 +326,7 @@ class CollisionChecker:
         terrain_margin: float = 0.0,
     ) -> bool:
         """True when ``q`` collides (see :meth:`report`); stops at the first contact."""
-        if pin.computeCollisions(self.model, self.data, self._broadphase, q, True):
+        if self.touches(q):
             return True
         if terrain is None:
             return False

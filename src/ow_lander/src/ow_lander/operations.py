@@ -165,23 +165,26 @@ class Operations:
         errors: list[str] = []
         goals: list[tuple[FloatArray, FloatArray]] = []
         # The scoop's heading over the pour point is free: the first heading (in order of
-        # preference) that straight joint moves reach and tip is taken; a sampled path (RRT*)
-        # only when no heading has one. IK follows the arm from its own pose, then from the
-        # unstowed one (an arm left tipped at a discard point has its wrist on a branch whose
-        # carrying poses touch the hand).
+        # preference) that straight joint moves reach and tip is taken, the tip a short motion
+        # (direct or staged); failing that, the first whose tip passes the safe pose; a sampled
+        # path (RRT*) only when no heading has either. IK follows the arm from its own pose, then
+        # from the unstowed one (an arm left tipped at a discard point has its wrist on a branch
+        # whose carrying poses touch the hand).
         headings = (0.0, heading, math.pi - math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2)
         for seed in (start, self.planner.safe):
             for phi in headings:
                 solved = self._carry_and_pour(point, phi, seed, ctx, errors)
                 if solved is None:
                     continue
-                carry, pour = solved
                 # The tip first: a heading whose pour needs a detour is usually refuted there.
-                tip = self.planner.plan_straight(carry, pour, ctx)
-                approach = None if tip is None else self.planner.plan_straight(start, carry, ctx)
-                if approach is not None and tip is not None:
-                    return self._delivery(approach, tip, p)
-                goals.append((carry, pour))
+                plan = self._straight_delivery(start, *solved, ctx, p, via_safe=False)
+                if plan is not None:
+                    return plan
+                goals.append(solved)
+        for carry, pour in goals:
+            plan = self._straight_delivery(start, carry, pour, ctx, p, via_safe=True)
+            if plan is not None:
+                return plan
         for carry, pour in goals:
             try:
                 approach = self.planner.plan_free(start, carry, ctx)
@@ -238,6 +241,21 @@ class Operations:
         goal = self.planner.solve_ik(SCOOP_TIP_FRAME, position, rotation, start, ctx)
         path = self.planner.plan_free(start, goal, ctx)
         return OperationPlan("move_cartesian", [PathSegment("move", path)], {})
+
+    def _straight_delivery(
+        self,
+        start: FloatArray,
+        carry: FloatArray,
+        pour: FloatArray,
+        ctx: CheckContext,
+        p: dict[str, Any],
+        via_safe: bool,
+    ) -> OperationPlan | None:
+        """Approach ``carry`` and tip to ``pour`` ((6,) rad) by straight joint moves (the tip
+        through the safe pose only ``via_safe``), or None."""
+        tip = self.planner.plan_straight(carry, pour, ctx, via_safe)
+        approach = None if tip is None else self.planner.plan_straight(start, carry, ctx)
+        return None if approach is None or tip is None else self._delivery(approach, tip, p)
 
     def _carry_and_pour(
         self,

@@ -174,15 +174,15 @@ class ArmPlanner:
         return self._sampled.plan(start, goal, ctx, objective)
 
     def plan_straight(
-        self, start: FloatArray, goal: FloatArray, ctx: CheckContext
+        self, start: FloatArray, goal: FloatArray, ctx: CheckContext, via_safe: bool = True
     ) -> FloatArray | None:
         """The straight-move steps of :meth:`plan_free` alone: the direct segment ``start`` ->
         ``goal`` ((6,) rad, both valid) when it is valid, else the cheaper valid pair of staged
-        straight moves, else the same two steps to the unstowed pose and from there on (the
-        paper's reason for having a "safe" configuration); None when none is, for a caller that
-        prefers another goal to a sampled path."""
+        straight moves, else (``via_safe``) the same two steps to the unstowed pose and from
+        there on (the paper's reason for having a "safe" configuration); None when none is, for
+        a caller that prefers another goal to a sampled path."""
         path = self._direct_or_staged(start, goal, ctx)
-        if path is None:
+        if path is None and via_safe:
             path = self._via_safe(start, goal, ctx)
         if path is not None:
             self.stats.direct_segments += len(path) - 1
