@@ -13,13 +13,13 @@ demo: setup
 	@$(RUN) rosrun ow_mission mission
 
 test: setup lint
-	@$(RUN) python -m pytest -n 2 tests $(PYTEST_ARGS)
+	@$(RUN) python -m pytest -n 2 --dist loadscope tests $(PYTEST_ARGS)
 
 unit: setup
 	@$(RUN) python -m pytest -n 2 tests/unit $(PYTEST_ARGS)
 
 integration: setup
-	@$(RUN) python -m pytest -n 2 tests/integration $(PYTEST_ARGS)
+	@$(RUN) python -m pytest -n 2 --dist loadscope tests/integration $(PYTEST_ARGS)
 
 lint: setup
 	@$(RUN) ruff check src tests bench scripts && ruff format --check src tests bench scripts \

@@ -16,13 +16,15 @@ import rospy
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Header
+from std_srvs.srv import Trigger
 
 import owl_msgs.msg as owl
 from ow_lander.actions import quaternion_from_rotation
 from ow_lander.description import ARM_JOINTS, DEFAULT_GROUND_Z, SCOOP_TIP_FRAME, UNSTOWED
 from ow_lander.model import LanderModel
-from ow_mission.testing import set_terrain
-from ow_msgs.msg import GroundDetectorSignal, Operation
+from ow_mission.testing import set_terrain, wait_connected
+from ow_msgs.msg import GroundDetectorSignal
 from ow_msgs.srv import Unstow
 
 GROUND = DEFAULT_GROUND_Z
@@ -209,41 +211,62 @@ def _wait_active(c):
     assert c.get_state() == GoalStatus.ACTIVE
 
 
+class Executing:
+    """Pauses the simulation once the arm follows the trajectory of what is started inside the
+    ``with`` block, so it is still running however loaded the machine: the trajectory's receipt
+    has come (``/sim/trajectory_received``) and the clock has passed its start (the arm services
+    resumed it). ``pause()`` blocks until then; the clock resumes when the block ends. The arm
+    services wait ``joint_state_timeout_s`` (5 s wall) for joint states before giving up."""
+
+    def __init__(self, stack) -> None:
+        self.receipts: list[Header] = []
+        self.sub = wait_connected(
+            rospy.Subscriber("/sim/trajectory_received", Header, self.receipts.append)
+        )
+        self.stack = stack
+
+    def __enter__(self) -> Executing:
+        return self
+
+    def pause(self) -> None:
+        deadline = time.monotonic() + 60
+        while not self.receipts or rospy.get_rostime() <= self.receipts[-1].stamp:
+            assert time.monotonic() < deadline, "no trajectory started"
+            time.sleep(0.005)
+        assert self.stack.service("/sim/pause", Trigger)().success
+
+    def __exit__(self, *_: object) -> None:
+        self.sub.unregister()
+        assert self.stack.service("/sim/resume", Trigger)().success
+
+
 def test_busy_both_ways(stack, joints):
     stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
     goal, _ = _long_move(joints)
     c = client("ArmMoveJoints")
-    c.send_goal(goal)
-    _wait_active(c)
-    state, _, text = run("ArmUnstow", owl.ArmUnstowGoal(), timeout=30)
-    assert state == GoalStatus.REJECTED
-    assert text == "busy: ArmMoveJoints goal is running"
-    response = stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
-    assert not response.success
-    assert response.message == "busy: ArmMoveJoints goal is running; request refused"
+    with Executing(stack) as executing:
+        c.send_goal(goal)
+        executing.pause()
+        assert c.get_state() == GoalStatus.ACTIVE
+        state, _, text = run("ArmUnstow", owl.ArmUnstowGoal(), timeout=30)
+        assert state == GoalStatus.REJECTED
+        assert text == "busy: ArmMoveJoints goal is running"
+        response = stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
+        assert not response.success
+        assert response.message == "busy: ArmMoveJoints goal is running; request refused"
     assert c.wait_for_result(rospy.Duration(120))
     assert c.get_state() == GoalStatus.SUCCEEDED
-    # A goal while a service request runs (once its START marker is out).
-    started = threading.Event()
-    sub = rospy.Subscriber(
-        "/arm/operation",
-        Operation,
-        lambda m: m.name == "unstow" and m.event == Operation.START and started.set(),
-    )
+    # A goal while a service request runs.
     answer = []
     call = threading.Thread(
         target=lambda: answer.append(stack.service("/arm/unstow", Unstow)(delete_prev_traj=False))
     )
-    deadline = time.monotonic() + 10
-    while sub.get_num_connections() == 0 and time.monotonic() < deadline:
-        time.sleep(0.01)
-    call.start()
-    try:
-        assert started.wait(30)
+    client("ArmStow")  # connected before: only the goal is timed
+    with Executing(stack) as executing:
+        call.start()
+        executing.pause()
         state, _, text = run("ArmStow", owl.ArmStowGoal(), timeout=30)
-    finally:
-        call.join()
-        sub.unregister()
+    call.join()
     assert state == GoalStatus.REJECTED
     assert text == "busy: /arm/unstow service is running"
     assert answer[0].success, answer[0].message

@@ -51,14 +51,17 @@ def _halfway(c, joints, start, target):
 
 
 def _check_held(joints, t_stop):
-    """(stop latency s sim: from the request until the arm is within 0.5 mrad of where it
-    rests, drift rad over the 2 s of sim time after that, s of samples after it)."""
+    """(stop latency s sim: from the request until the arm stays within 0.5 mrad of where it
+    rests 2.5 s later, drift rad over the 2 s of sim time after that, s of samples after it).
+
+    The latency bounds the drift too: an arm that crept by more than 0.5 mrad after stopping
+    would settle late."""
     joints.wait_sim(2.5)
     final = joints.latest()
     after = [(t, q) for t, q in joints.samples if t >= t_stop]
     far = [t for t, q in after if np.max(np.abs(q - final)) > 5e-4]
     settled = far[-1] if far else t_stop
-    held = [q for t, q in after if settled <= t <= settled + 2.0]
+    held = [q for t, q in after if settled < t <= settled + 2.0]  # from the first one at rest
     drift = max(float(np.max(np.abs(q - held[0]))) for q in held)
     return settled - t_stop, drift, after[-1][0] - settled
 

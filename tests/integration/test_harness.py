@@ -107,3 +107,23 @@ def test_a_terminated_script_stops_its_nodes(tmp_path):
     finally:
         if script.poll() is None:
             os.killpg(script.pid, signal.SIGKILL)
+
+
+def test_a_node_is_ready_only_on_what_it_registered_itself(ros_master):
+    """A service another node offers does not make a node ready: a node of the same name that
+    is still shutting down must not pass for the new one."""
+    stack = RosStack(ros_master)
+    stack.start_node(
+        "rosout", "rosout", name="harness_first", wait_for_services=["/harness_first/get_loggers"]
+    )
+    services, _ = ros_master.offered_by("/harness_first")
+    assert "/harness_first/get_loggers" in services
+    with pytest.raises(HarnessError, match=r"did not offer \['/harness_first/get_loggers'\]"):
+        stack.start_node(
+            "rosout",
+            "rosout",
+            name="harness_second",
+            wait_for_services=["/harness_first/get_loggers"],
+            timeout_s=3.0,
+        )
+    stack.shutdown()

@@ -1,6 +1,8 @@
-"""The report of a real mission (``rosrun ow_mission mission <file>``, renders on): every image it
-links exists, its energies are the power plot's, the figures made from the bags are there and say
-what the run did. One mission run for the whole module."""
+"""The report of a real mission (``rosrun ow_mission mission <file>``, renders on) run through
+OceanWATERS' actions (``interface: actions``): every step succeeds through the actions, the ground
+ArmFindSurface found lies on the terrain as made; every image the report links exists, its energies
+are the power plot's, the figures made from the bags are there and say what the run did. One
+mission run for the whole module (the services' mission is test_mission's)."""
 
 from __future__ import annotations
 
@@ -12,22 +14,27 @@ from typing import Any
 import pytest
 import yaml
 from PIL import Image
+from test_mission import STEPS
 
 from ow_mission.report import image_links
+from ow_sim_bullet.terrains import parse_terrain_spec
 
 MISSION_TIMEOUT_S = 1200.0  # a hang fails the test instead of blocking the suite
+TERRAIN = "europa:7"
 
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory) -> tuple[int, str, Path, dict[str, Any]]:
-    """The default procedure on europa:7, renders on, run once."""
+    """The default procedure on europa:7 through the actions, renders on, run once."""
     directory = tmp_path_factory.mktemp("report")
     path = directory / "mission.yaml"
-    path.write_text(
-        yaml.safe_dump(
-            {"name": "report test", "terrain": "europa:7", "output_dir": str(directory / "runs")}
-        )
-    )
+    mission = {
+        "name": "report test",
+        "terrain": TERRAIN,
+        "interface": "actions",
+        "output_dir": str(directory / "runs"),
+    }
+    path.write_text(yaml.safe_dump(mission))
     proc = subprocess.run(
         ["rosrun", "ow_mission", "mission", str(path)],
         capture_output=True,
@@ -91,3 +98,22 @@ def test_the_replay_runs_at_ten_frames_per_second_or_more(run):
     with Image.open(run_dir / replay["file"]) as gif:
         assert gif.n_frames == replay["frames"] >= 100
         assert gif.info["duration"] <= 100  # ms per frame
+
+
+def test_every_step_succeeds_through_the_actions(run):
+    returncode, output, _, report = run
+    assert returncode == 0, output[-3000:]
+    assert [s["step"] for s in report["steps"]] == STEPS
+    for step in report["steps"]:
+        assert step["success"], (step["step"], step["message"])
+        assert step["sim_end_s"] > step["sim_start_s"]
+        assert step["energy_wh"] > 0.0
+    assert report["config"]["interface"] == "actions"
+    assert report["steps"][1]["message"].startswith("ArmFindSurface:")
+
+
+def test_ground_found_lies_on_the_terrain(run):
+    _, _, _, report = run
+    x, y, z = report["steps"][1]["ground_position"]
+    assert report["ground_z"] == pytest.approx(z)
+    assert z == pytest.approx(float(parse_terrain_spec(TERRAIN).height_at(x, y)), abs=0.005)

@@ -33,6 +33,10 @@ from ow_viz.config import CONFIG_FILE as VIZ_YAML
 SCALE_PX_PER_M = 70.0  # pixels per metre of the orthographic view
 SHIPPED_RVIZ = Path(VIZ_YAML).parent / "ow_viz.rviz"
 TOOLS = ("rviz", "Xvfb", "import")
+SETTLE_TIMEOUT_S = 180.0  # wall: RViz under software rendering on a loaded machine
+# Settled: at most this fraction of the pixels changed between two screenshots 1 s apart (the
+# held arm's sub-millimetre motion can still flip a few edge pixels).
+SETTLED_FRACTION = 0.001
 
 
 def _test_config(path: Path) -> Path:
@@ -145,8 +149,9 @@ def screenshot(stack, display, tmp_path_factory):
         )
     shot = directory / "shot.png"
     try:
-        deadline = time.monotonic() + 90.0
+        deadline = time.monotonic() + SETTLE_TIMEOUT_S
         previous = None
+        seen = "no screenshot"
         while True:
             time.sleep(1.0)
             if rviz.poll() is not None:
@@ -159,12 +164,17 @@ def screenshot(stack, display, tmp_path_factory):
                 timeout=30,
             )
             rgb = _rgb(shot)
-            drawn = _terrain_mask(rgb).sum() > 1000 and _gold_mask(rgb).sum() > 100
-            if drawn and previous is not None and np.array_equal(rgb, previous):
+            terrain_px, gold_px = int(_terrain_mask(rgb).sum()), int(_gold_mask(rgb).sum())
+            changed = 1.0 if previous is None else float(np.any(rgb != previous, axis=-1).mean())
+            seen = f"{terrain_px} terrain px, {gold_px} gold px, {changed:.2%} changed"
+            if terrain_px > 1000 and gold_px > 100 and changed <= SETTLED_FRACTION:
                 break
             previous = rgb
             if time.monotonic() > deadline:
-                pytest.fail(f"RViz drew no settled lander and terrain within 90 s; last: {shot}")
+                pytest.fail(
+                    f"RViz drew no settled lander and terrain within {SETTLE_TIMEOUT_S} s "
+                    f"(last: {seen}): {shot}"
+                )
         joints = rospy.wait_for_message("/joint_states", JointState, timeout=10)
         terrain = rospy.wait_for_message("/sim/terrain", HeightMapMsg, timeout=10)
         keep = os.environ.get("OW_VIZ_SCREENSHOT")  # a path to keep the picture at

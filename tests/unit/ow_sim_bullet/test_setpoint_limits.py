@@ -157,15 +157,18 @@ def test_the_runner_reports_what_it_did_with_each_command(sim):
     runner.command_setpoint("j_shou_yaw", math.nan, warnings.append)
     runner.command_setpoint("j_shou_yaw", -1e9, warnings.append)
     runner.command_setpoint("j_shou_yaw", -1.5, warnings.append)
+    receipts: list[float | None] = []
     runner.command_trajectory(
         lambda now, names: JointTrajectory.build(["j_elbow"], now, [1.0], [[0.0]], None, names),
         warnings.append,
+        receipts.append,
     )
     runner.command_trajectory(
         lambda now, names: JointTrajectory.build(
             ["j_prox_pitch"], now, [1.0], [[9.0]], None, names
         ),
         warnings.append,
+        receipts.append,
     )
     thread = threading.Thread(target=runner.run, daemon=True)
     thread.start()
@@ -177,6 +180,8 @@ def test_the_runner_reports_what_it_did_with_each_command(sim):
     assert "set-point -1e+09 rad for j_shou_yaw is beyond its limits [-1.8, 1.8] rad" in warnings[1]
     assert "trajectory ignored: trajectory names unknown joint(s) ['j_elbow']" in warnings[2]
     assert warnings[3].startswith("trajectory set-point 9 rad for j_prox_pitch is beyond")
+    # The receipts: None for the ignored one, the start (the paused clock) for the queued one.
+    assert receipts == [None, sim.time - sim.dt]
     sim.reset()
 
 

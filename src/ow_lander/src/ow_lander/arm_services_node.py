@@ -88,6 +88,7 @@ class ArmServicesNode:
         self._owner_lock = threading.Lock()
         self.owner: str | None = None
         self._terrain_changed = threading.Condition(threading.Lock())
+        self._terrain_deadline = time.monotonic() + config.terrain_wait_s
         self._terrain: HeightMap | None = None
         self._fallback = HeightMap.flat(config.fallback_ground_z)
         self._operation_id = 0
@@ -113,12 +114,11 @@ class ArmServicesNode:
             self._terrain_changed.notify_all()
 
     def _current_terrain(self) -> tuple[HeightMap, str]:
-        """The latest /sim/terrain; right after start-up the latched message may still be on its
-        way, so wait up to ``terrain_wait_s`` for it before planning against the fallback."""
+        """The latest /sim/terrain, waited for until ``terrain_wait_s`` after start-up (it may be
+        on its way), else the fallback (later requests do not wait: no simulation sends it)."""
         with self._terrain_changed:
-            self._terrain_changed.wait_for(
-                lambda: self._terrain is not None, timeout=self.config.terrain_wait_s
-            )
+            wait_s = max(0.0, self._terrain_deadline - time.monotonic())
+            self._terrain_changed.wait_for(lambda: self._terrain is not None, timeout=wait_s)
             terrain = self._terrain
         if terrain is None:
             note = (

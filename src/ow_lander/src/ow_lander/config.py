@@ -138,10 +138,11 @@ class ExecutionConfig:
             streamed to ``/<joint>_position_controller/command`` at ``command_rate_hz`` as in
             the paper (faithful at real_time_factor 1; lags when the simulation runs faster than
             this node can stream).
-        start_delay_s: s (simulation time) between sending a trajectory and its first row.
+        start_delay_s: s (simulation time) between sending a trajectory and its first row,
+            for a simulation that sends no receipts (ours starts a trajectory when it queues
+            it, clock paused, and says when on ``/sim/trajectory_received``).
         delivery_wait_s: s (wall), how long the simulation's clock stays paused while a
-            trajectory is delivered to a simulation that sends no receipt (ours publishes
-            ``/sim/trajectory_received``, and the clock resumes on it).
+            trajectory is delivered to a simulation that sends no receipt.
         service_wait_s: s (wall), how long to look for the simulation's ``/sim/pause`` and
             ``/sim/resume`` services (once).
         command_rate_hz: Hz (simulation time), set-point rate of the "position_controllers"
@@ -191,8 +192,8 @@ class ArmServicesConfig:
         plan_and_execute: services also execute their plan (one call per operation).
         fallback_ground_z: m, height (base_link) of the flat terrain assumed until
             ``/sim/terrain`` has been received.
-        terrain_wait_s: s (wall), how long a request waits for a first ``/sim/terrain``
-            before planning against the fallback ground.
+        terrain_wait_s: s (wall) from start-up during which a request waits for a first
+            ``/sim/terrain`` before planning against the fallback ground.
         planner: see :class:`PlannerConfig`.
         timing: see :class:`TimingConfig`.
         execution: see :class:`ExecutionConfig`.

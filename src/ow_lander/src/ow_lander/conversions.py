@@ -63,11 +63,13 @@ def jsonable(values: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-def trajectory_msg(trajectory: Trajectory, t_start: float) -> JointTrajectory:
-    """A ``trajectory_msgs/JointTrajectory`` of ``trajectory`` starting at ``t_start`` s (sim):
-    every row with its positions (rad) and velocities (rad/s)."""
+def trajectory_msg(trajectory: Trajectory, t_start: float, token: str = "") -> JointTrajectory:
+    """A ``trajectory_msgs/JointTrajectory`` of ``trajectory`` starting at ``t_start`` s (sim; 0:
+    when the simulation queues it): every row with its positions (rad) and velocities (rad/s);
+    ``token`` in the header's frame_id, echoed by the simulation's receipt."""
     msg = JointTrajectory()
     msg.header.stamp = genpy.Time.from_sec(t_start)
+    msg.header.frame_id = token
     msg.joint_names = list(trajectory.joints)
     for t, position, velocity in zip(
         trajectory.times, trajectory.positions, trajectory.velocities, strict=True

@@ -24,7 +24,7 @@ from ow_lander.execution import (
     with_settle_pause,
 )
 from ow_lander.model import LanderModel
-from ow_lander.sim_clock_node import SimClock
+from ow_lander.sim_clock_node import SimClock, TrajectoryDeliveryError
 from ow_lander.trajectory import Trajectory
 from ow_msgs.msg import GuardedMoveResult
 
@@ -80,7 +80,10 @@ class ArmExecutor(ArmObserver):
             return refused
         trajectory = with_settle_pause(trajectory, cfg)
         if cfg.interface == "trajectory":
-            t_start = self._send_trajectory(trajectory)
+            try:
+                t_start = self._send_trajectory(trajectory)
+            except TrajectoryDeliveryError as error:
+                return ExecutionResult(False, str(error))
         else:
             with self._state_changed:
                 t_start = self._joint_stamp + cfg.start_delay_s
@@ -164,27 +167,46 @@ class ArmExecutor(ArmObserver):
                 self.command_pubs[joint].publish(Float64(value))
 
     def _send_trajectory(self, trajectory: Trajectory) -> float:
-        """Hand ``trajectory`` to the simulation to start ``start_delay_s`` from now (sim time);
-        return that start time.
+        """Hand ``trajectory`` to the simulation; return when (sim time, s) it starts.
 
         A simulation running many times faster than real time could pass the start time before
         the message arrives, so its clock is paused while the message is delivered (when it
-        offers ``/sim/pause`` and ``/sim/resume``)."""
+        offers ``/sim/pause`` and ``/sim/resume``). A simulation that sends receipts starts the
+        trajectory when it queues it, clock stopped, and its receipt says when: the start is
+        then exact whatever the machine's load. Otherwise the start is ``start_delay_s`` after
+        the newest joint state.
+
+        Raises:
+            TrajectoryDeliveryError: the simulation does not subscribe to the trajectory topic,
+                sent no receipt, or ignored the trajectory.
+        """
         cfg = self.config
+        deadline = time.monotonic() + cfg.service_wait_s
+        while self.trajectory_pub.get_num_connections() == 0:  # else the message is lost
+            if time.monotonic() > deadline:
+                msg = (
+                    "the simulation does not subscribe to /sim/joint_trajectory "
+                    f"(waited {cfg.service_wait_s} s)"
+                )
+                raise TrajectoryDeliveryError(msg)
+            time.sleep(0.01)
         paused = self._sim_clock.call("pause")
         try:
+            if paused and self._sim_clock.sends_receipts():
+                token = self._sim_clock.new_token()
+                self.trajectory_pub.publish(conv.trajectory_msg(trajectory, 0.0, token))
+                return float(self._sim_clock.wait_received(token).to_sec())
             if paused:
                 self._wait_quiet(cfg.delivery_wait_s)
             with self._state_changed:
                 t_start = self._joint_stamp + cfg.start_delay_s
-            message = conv.trajectory_msg(trajectory, t_start)
-            self.trajectory_pub.publish(message)
+            self.trajectory_pub.publish(conv.trajectory_msg(trajectory, t_start))
             if paused:
-                self._sim_clock.wait_received(message.header.stamp, cfg.delivery_wait_s)
+                time.sleep(cfg.delivery_wait_s)  # no receipts: time for the delivery
+            return t_start
         finally:
             if paused:
                 self._sim_clock.call("resume")
-        return t_start
 
     def _wait_quiet(self, quiet_s: float, limit_s: float = 1.0) -> None:
         """Wait until no new /joint_states has arrived for ``quiet_s`` (wall): the newest one then

@@ -9,21 +9,32 @@ import rospy
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
+#: frame_id prefix of the receipt of a trajectory the simulation ignored.
+REFUSED = "refused:"
+
+
+class TrajectoryDeliveryError(Exception):
+    """A trajectory did not reach the simulation, or the simulation ignored it."""
+
 
 class SimClock:
     """Pauses and resumes the simulation's clock around a trajectory's delivery.
 
     Calls: ``/sim/pause``, ``/sim/resume`` (std_srvs/Trigger), when the simulation offers them;
     whether it does is looked up once, within ``service_wait_s`` s of wall time.
-    Subscribes: ``/sim/trajectory_received`` (std_msgs/Header, stamp = the trajectory's start):
-        the simulation's receipt of a trajectory, so the clock resumes only once it has it.
+    Subscribes: ``/sim/trajectory_received`` (std_msgs/Header: stamp = the sim time the
+        trajectory starts at; frame_id = the trajectory's token, "refused:<token>" if the
+        simulation ignored it): the simulation's
+        receipt of a trajectory, so the clock resumes only once it has it, and the start is the
+        simulation's own (no guess from the newest /joint_states, which may lag under load).
     """
 
     def __init__(self, service_wait_s: float) -> None:
         self.service_wait_s = service_wait_s
         self._offered: bool | None = None
         self._received = threading.Condition()
-        self._last_received: rospy.Time | None = None
+        self._receipts_by_token: dict[str, rospy.Time | None] = {}
+        self._tokens = 0
         self._receipts_connected: bool | None = None
         self._receipts = rospy.Subscriber(
             "/sim/trajectory_received", Header, self._on_received, queue_size=10
@@ -31,20 +42,46 @@ class SimClock:
 
     def _on_received(self, msg: Header) -> None:
         with self._received:
-            self._last_received = msg.stamp
-            self._received.notify_all()
+            refused = msg.frame_id.startswith(REFUSED)
+            token = msg.frame_id.removeprefix(REFUSED)
+            if token:
+                self._receipts_by_token[token] = None if refused else msg.stamp
+                self._received.notify_all()
 
-    def wait_received(self, stamp: rospy.Time, fallback_s: float) -> None:
-        """Wait (wall time) until the simulation confirms the trajectory starting at ``stamp``,
-        up to ``service_wait_s``; a simulation that sends no receipts gets ``fallback_s``."""
-        if not self._sends_receipts():
-            time.sleep(fallback_s)
-            return
+    def new_token(self) -> str:
+        """A token for the next trajectory's header (frame_id), unique to this node."""
+        self._tokens += 1
+        return f"{rospy.get_name()}#{self._tokens}"
+
+    def sends_receipts(self) -> bool:
+        """True once the receipt subscription is connected. Right after start-up it may not be
+        yet (the first trajectory can follow within a second): wait up to ``service_wait_s`` the
+        first time; a simulation that never connects is then used without receipts."""
+        if self._receipts_connected is None:
+            deadline = time.monotonic() + self.service_wait_s
+            while self._receipts.get_num_connections() == 0 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            self._receipts_connected = self._receipts.get_num_connections() > 0
+        return self._receipts_connected
+
+    def wait_received(self, token: str) -> rospy.Time:
+        """The start (sim time) the simulation gave the trajectory with ``token``, waited for up
+        to ``service_wait_s`` of wall time.
+
+        Raises:
+            TrajectoryDeliveryError: no receipt came, or the simulation ignored the trajectory.
+        """
         with self._received:
             if not self._received.wait_for(
-                lambda: self._last_received == stamp, timeout=self.service_wait_s
+                lambda: token in self._receipts_by_token, timeout=self.service_wait_s
             ):
-                rospy.logwarn("arm_services: no receipt of the trajectory from the simulation")
+                msg = f"the simulation sent no receipt of the trajectory in {self.service_wait_s} s"
+                raise TrajectoryDeliveryError(msg)
+            start = self._receipts_by_token.pop(token)
+        if start is None:
+            msg = "the simulation ignored the trajectory (its log says why)"
+            raise TrajectoryDeliveryError(msg)
+        return start
 
     def call(self, action: str) -> bool:
         """Call ``/sim/<action>`` (pause or resume); False when the simulation has none or the
@@ -58,17 +95,6 @@ class SimClock:
         except rospy.ServiceException as error:
             rospy.logwarn("arm_services: /sim/%s failed: %s", action, error)
             return False
-
-    def _sends_receipts(self) -> bool:
-        """True once the receipt subscription is connected. Right after start-up it may not be
-        yet (the first trajectory can follow within a second): wait up to ``service_wait_s`` the
-        first time; a simulation that never connects is then used without receipts."""
-        if self._receipts_connected is None:
-            deadline = time.monotonic() + self.service_wait_s
-            while self._receipts.get_num_connections() == 0 and time.monotonic() < deadline:
-                time.sleep(0.01)
-            self._receipts_connected = self._receipts.get_num_connections() > 0
-        return self._receipts_connected
 
     def _offers(self, services: tuple[str, ...]) -> bool:
         for name in services:

@@ -149,6 +149,14 @@ class RosMaster:
         publishers, _, _ = self.call("getSystemState")
         return {name for name, _ in publishers}
 
+    def offered_by(self, node: str) -> tuple[set[str], set[str]]:
+        """(services, published topics) that node ``node`` (e.g. ``/sim``) has registered."""
+        publishers, _, services = self.call("getSystemState")
+        return (
+            {name for name, providers in services if node in providers},
+            {name for name, nodes in publishers if node in nodes},
+        )
+
 
 @dataclass
 class NodeProcess:
@@ -204,8 +212,8 @@ class RosStack:
             name: node name (default: the executable's name); private parameters go to ``/<name>/``.
             args: extra command-line arguments (e.g. remappings ``"a:=b"``).
             params: private parameters, set on the master before the node starts.
-            wait_for_services: service names that must be offered before this returns.
-            wait_for_topics: topic names that must have a publisher before this returns.
+            wait_for_services: service names the node must offer before this returns.
+            wait_for_topics: topic names the node must publish before this returns.
             timeout_s: s of wall time to wait for them.
             wait: False returns at once (start several nodes side by side, then
                 :meth:`wait_ready` for each).
@@ -244,7 +252,7 @@ class RosStack:
         topics: Iterable[str] = (),
         timeout_s: float = 60.0,
     ) -> None:
-        """Wait until ``node`` offers ``services`` and ``topics`` have publishers.
+        """Wait until ``node`` offers ``services`` and publishes ``topics``.
 
         Raises:
             HarnessError: the node exited or was not ready in time (with the end of its log).
@@ -260,9 +268,9 @@ class RosStack:
                 tail = _log_tail(node.log_path)
                 msg = f"node {node.name} exited with {node.proc.returncode}:\n{tail}"
                 raise HarnessError(msg)
-            missing = (services - self.master.services()) | (
-                topics - self.master.published_topics()
-            )
+            # Offered by this node: a node of the same name stopping may still be registered.
+            offered_services, offered_topics = self.master.offered_by(f"/{node.name}")
+            missing = (services - offered_services) | (topics - offered_topics)
             if not missing:
                 return
             if time.monotonic() > deadline:

@@ -31,6 +31,7 @@ Fixtures:
         ground at the default height unless told otherwise) and the arm services (plan and
         execute) on ``ros_stack``; keyword arguments give each node more parameters.
 
+:func:`wait_connected` waits until a publisher or subscriber of the test is connected.
 :func:`set_terrain` gives the running simulation a new terrain and waits until the arm services
 have it: call it at the start of a test whose result must not depend on what earlier tests carved.
 
@@ -60,6 +61,7 @@ __all__ = [
     "ros_stack",
     "set_terrain",
     "start_lander",
+    "wait_connected",
 ]
 
 #: The terrain the lander starts on unless a test asks for another.
@@ -162,3 +164,17 @@ def set_terrain(stack: RosStack, spec: str = FLAT, lift_arm: bool = False) -> No
                 break
             assert time.monotonic() < deadline, "/sim/terrain still shows the carved terrain"
         time.sleep(0.2)  # ... and the arm services, subscribed to it too, have it as well
+
+
+def wait_connected(endpoint: Any, timeout_s: float = 10.0) -> Any:
+    """Wait (wall time) until a rospy Publisher or Subscriber has a connection and return it:
+    a message published, or one published to a subscriber, before then is lost.
+
+    Raises:
+        AssertionError: no connection within ``timeout_s``.
+    """
+    deadline = time.monotonic() + timeout_s
+    while endpoint.get_num_connections() == 0:
+        assert time.monotonic() < deadline, f"nothing connected to {endpoint.name} in {timeout_s} s"
+        time.sleep(0.02)
+    return endpoint

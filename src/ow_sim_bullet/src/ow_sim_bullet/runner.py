@@ -87,6 +87,7 @@ class SimRunner:
         self,
         build: Callable[[float, tuple[str, ...]], JointTrajectory],
         warn: Callable[[str], None],
+        queued: Callable[[float | None], None] | None = None,
     ) -> None:
         """Follow a trajectory from the next step (:meth:`BulletSim.set_trajectory`).
 
@@ -95,16 +96,23 @@ class SimRunner:
                 (e.g. ``TrajectoryRequest.build``); raises CommandError for a bad one.
             warn: called on the simulation thread with why the trajectory was ignored, or with
                 each joint whose points beyond its URDF limits are followed on the limit.
+            queued: called on the simulation thread, before any later command, with the
+                trajectory's start (s, sim time), or None when it was ignored.
         """
 
         def command() -> None:
             try:
-                clipped = self.sim.set_trajectory(build(self.sim.time, self.sim.names))
+                trajectory = build(self.sim.time, self.sim.names)
+                clipped = self.sim.set_trajectory(trajectory)
             except CommandError as error:
                 warn(f"trajectory ignored: {error}")
+                if queued is not None:
+                    queued(None)
                 return
             for clip in clipped:
                 warn(f"trajectory {clip.describe()}")
+            if queued is not None:
+                queued(trajectory.start_time)
 
         self.enqueue(command)
 

@@ -68,9 +68,9 @@ class SimNode:
         /<controller>_position_controller/command (std_msgs/Float64): rad, set-point of one joint
             (controllers shou_yaw, shou_pitch, prox_pitch, dist_pitch, hand_yaw, scoop_yaw,
             grinder_yaw, ant_pan, ant_tilt); cancels that joint's trajectory.
-        /sim/joint_trajectory (trajectory_msgs/JointTrajectory): interpolated by the sim; a zero
-            header stamp starts it on arrival, else at that sim time; receipt published on
-            ``~trajectory_received`` (std_msgs/Header, the trajectory's stamp) once queued.
+        /sim/joint_trajectory (trajectory_msgs/JointTrajectory): interpolated by the sim from
+            its stamp (0: on arrival); once queued ``~trajectory_received`` (std_msgs/Header)
+            gives its start, frame_id echoed ("refused:" prefixed, stamp 0, if ignored).
         /dem/scoop_wrench, /dem/grinder_wrench (geometry_msgs/WrenchStamped): with
             ``~terrain_forces: bridge`` only, the co-simulation's wrenches (ow_dem_bridge).
 
@@ -142,14 +142,17 @@ class SimNode:
         self.runner.command_setpoint(joint, msg.data, _warn)
 
     def _on_trajectory(self, msg: JointTrajectoryMsg) -> None:
+        def receipt(start: float | None) -> None:  # before any later pause/resume/step
+            token = msg.header.frame_id if start is not None else f"refused:{msg.header.frame_id}"
+            stamp = rospy.Time(*conversions.stamp_parts(start or 0.0))
+            self._received_pub.publish(Header(stamp=stamp, frame_id=token))
+
         try:
             request = conversions.TrajectoryRequest.from_msg(msg)
         except CommandError as error:
             rospy.logerr(f"sim: trajectory ignored: {error}")
-            return
-        self.runner.command_trajectory(request.build, _warn)
-        # Queued before any later pause/resume/step: a sender waiting for this may resume.
-        self._received_pub.publish(Header(stamp=msg.header.stamp))
+            return receipt(None)
+        self.runner.command_trajectory(request.build, _warn, receipt)
 
     def _on_reset(self, _: Any) -> TriggerResponse:
         try:
