@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import pytest
+
 from ow_faults.detection import FaultDetector
 from ow_faults.errors import FaultError
 from ow_faults.injection import LOCKABLE_JOINTS, FaultSet
-
 from owl_msgs.msg import ArmFaultsStatus as Arm
 from owl_msgs.msg import PanTiltFaultsStatus as PanTilt
 from owl_msgs.msg import PowerFaultsStatus as Power

@@ -4,6 +4,7 @@ dynamic_reconfigure config), validation messages, locks, custom power profiles."
 from __future__ import annotations
 
 import pytest
+
 from ow_faults.errors import FaultError
 from ow_faults.injection import LOCKABLE_JOINTS, PARAMETERS, FaultSet, read_power_profile
 

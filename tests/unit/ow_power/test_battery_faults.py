@@ -4,8 +4,8 @@ profile, disconnected cells, forced low SOC, capacity loss, thermal failure."""
 from __future__ import annotations
 
 import pytest
-from ow_faults.injection import FORCED_TEMPERATURE_C, FaultSet, read_power_profile
 
+from ow_faults.injection import FORCED_TEMPERATURE_C, FaultSet, read_power_profile
 from ow_power.battery import Battery
 from ow_power.battery_faults import PowerFaults
 from ow_power.config import BatteryConfig

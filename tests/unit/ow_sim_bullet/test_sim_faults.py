@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from ow_faults.injection import LOCKABLE_JOINTS, FaultSet
 
+from ow_faults.injection import LOCKABLE_JOINTS, FaultSet
 from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.faults import WristFaults
 from ow_sim_bullet.sim_core import BulletSim

@@ -25,7 +25,6 @@ from ow_faults.injection import (
     PowerProfile,
     read_power_profile,
 )
-
 from ow_power.battery import Battery
 
 

@@ -6,11 +6,11 @@ import sys
 import threading
 
 import rospy
+from sensor_msgs.msg import BatteryState as BatteryStateMsg
+
 from ow_faults.errors import FaultError
 from ow_faults.injection import FaultSet
 from ow_faults.listener_node import FaultsListener
-from sensor_msgs.msg import BatteryState as BatteryStateMsg
-
 from ow_msgs.msg import Power
 from ow_power.battery import Battery
 from ow_power.battery_faults import PowerFaults

@@ -21,6 +21,7 @@ from collections.abc import Mapping
 import numpy as np
 import numpy.typing as npt
 import pybullet as pb
+
 from ow_faults.injection import LOCKABLE_JOINTS, FaultSet
 
 FloatArray = npt.NDArray[np.float64]

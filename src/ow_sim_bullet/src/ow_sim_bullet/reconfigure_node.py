@@ -8,11 +8,11 @@ from functools import partial
 from typing import Any
 
 import rospy
+
 from ow_faults.errors import OwFaultsError
 from ow_faults.injection import FaultSet
 from ow_faults.listener_node import FaultsListener
 from ow_faults.server_node import CheckedServer
-
 from ow_msgs.srv import SetPidGains, SetPidGainsResponse
 from ow_sim_bullet.config import CONTROLLER_NAMES, PID_FIELDS, PidGains, gain_changes
 from ow_sim_bullet.errors import CommandError, SimError

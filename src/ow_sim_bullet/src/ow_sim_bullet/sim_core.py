@@ -27,10 +27,10 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 import pybullet as pb
-from ow_faults.injection import FaultSet
 
 from ow_dem_bridge.api import TerrainForceModel
 from ow_dem_bridge.models import make_model
+from ow_faults.injection import FaultSet
 from ow_lander.description import TERRAIN_CONTACT_LINKS, URDF_PATH
 from ow_lander.terrain import HeightMap
 from ow_sim_bullet.bullet_terrain import BulletTerrain

@@ -20,16 +20,15 @@ from ow_lander.description import URDF_PATH
 from ow_lander.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.srv import (
-    SetPidGains,
-    SetPidGainsResponse,
     SetTerrain,
     SetTerrainResponse,
     StepSimulation,
     StepSimulationResponse,
 )
 from ow_sim_bullet import conversions, outputs, wire
-from ow_sim_bullet.config import CONTROLLER_NAMES, PidGains, SimConfig
+from ow_sim_bullet.config import CONTROLLER_NAMES, SimConfig
 from ow_sim_bullet.errors import CommandError, SimError
+from ow_sim_bullet.reconfigure_node import SimReconfigure
 from ow_sim_bullet.runner import SimRunner
 from ow_sim_bullet.sim_core import BulletSim, make_force_model
 from ow_sim_bullet.terrains import parse_terrain_spec
@@ -63,6 +62,9 @@ class SimNode:
             COM (zero when no model ran).
         /sim/terrain (ow_msgs/HeightMap, latched): the terrain; republished after carving at
             most every ``~terrain_publish_period`` s of wall time.
+        /flags/joint_states (ow_msgs/JointStatesFlag): locked joints, with /joint_states.
+    Faults (``/faults/parameter_updates``) and PID gains (dynamic_reconfigure): see
+    :class:`~ow_sim_bullet.reconfigure_node.SimReconfigure`.
 
     Subscriptions:
         /<controller>_position_controller/command (std_msgs/Float64): rad, set-point of one joint
@@ -78,7 +80,8 @@ class SimNode:
         ~reset: joints back to ``~initial_positions`` (stowed), at rest, trajectories cleared.
         ~pause, ~resume: stop and restart the clock.
         ~step (ow_msgs/StepSimulation): advance a paused simulation by N physics steps.
-        ~set_pid_gains (ow_msgs/SetPidGains): change one joint's gains now.
+        ~set_pid_gains (ow_msgs/SetPidGains): change one joint's gains now (partial requests
+            keep what they leave out; see SimReconfigure).
         ~set_terrain (ow_msgs/SetTerrain): replace the terrain (spec as ``~terrain``).
 
     Parameters: see :class:`ow_sim_bullet.config.SimConfig` and docs/simulation.md.
@@ -127,8 +130,8 @@ class SimNode:
         rospy.Service("~pause", Trigger, self._on_pause)
         rospy.Service("~resume", Trigger, self._on_resume)
         rospy.Service("~step", StepSimulation, self._on_step)
-        rospy.Service("~set_pid_gains", SetPidGains, self._on_set_gains)
         rospy.Service("~set_terrain", SetTerrain, self._on_set_terrain)
+        self.reconfigure = SimReconfigure(self.runner)  # faults, PID gains, ~set_pid_gains
         self._thread = threading.Thread(target=self._run, name="sim", daemon=True)
 
     def _parse_terrain(self, spec: str) -> HeightMap:
@@ -173,16 +176,6 @@ class SimNode:
         except SimError as error:
             return StepSimulationResponse(False, str(error), self.sim.time)
         return StepSimulationResponse(True, f"stepped {request.steps} steps", sim_time)
-
-    def _on_set_gains(self, request: Any) -> SetPidGainsResponse:
-        values = {"p": request.p, "i": request.i, "d": request.d, "i_clamp": request.i_clamp}
-        try:
-            gains = PidGains.from_dict(values, f"gains of {request.joint}")
-            self.runner.call(partial(self.sim.set_gains, request.joint, gains))
-        except SimError as error:
-            return SetPidGainsResponse(success=False, message=str(error))
-        text = f"p {gains.p} i {gains.i} d {gains.d} i_clamp {gains.i_clamp}"
-        return SetPidGainsResponse(success=True, message=f"{request.joint}: {text}")
 
     def _on_set_terrain(self, request: Any) -> SetTerrainResponse:
         try:
