@@ -88,12 +88,49 @@ def client(name: str) -> actionlib.SimpleActionClient:
     return c
 
 
+@functools.cache
+def feedback_stamps(name: str) -> list[float]:
+    """The sim-time stamps (s) of every feedback message of action ``name`` from now on (its
+    /feedback topic, the header the server stamps on publishing)."""
+    stamps: list[float] = []
+    wait_connected(
+        rospy.Subscriber(
+            f"/{name}/feedback",
+            getattr(owl, f"{name}ActionFeedback"),
+            lambda m: stamps.append(m.header.stamp.to_sec()),
+            queue_size=1000,
+        ),
+        timeout_s=30,
+    )
+    return stamps
+
+
+#: Hz of simulation time, the feedback rate the actions must keep (issue: 10 Hz or more).
+MIN_FEEDBACK_HZ = 10.0
+
+
 def run(name: str, goal, feedback=None, timeout: float = 300.0):
-    """Send ``goal`` and wait: (state, result, status text)."""
+    """Send ``goal`` and wait: (state, result, status text). A goal of an action with feedback
+    fields must have had feedback when it succeeds, at ``MIN_FEEDBACK_HZ`` or more over its
+    motion when that lasted a second or more of simulation time (header stamps of
+    /<name>/feedback)."""
     c = client(name)
+    stamps = feedback_stamps(name)
+    first = len(stamps)
     c.send_goal(goal, feedback_cb=feedback)
     assert c.wait_for_result(rospy.Duration(timeout)), f"{name} did not end"
-    return c.get_state(), c.get_result(), c.get_goal_status_text()
+    state = c.get_state()
+    # Actions whose feedback has fields (OceanWATERS' ArmUnstow, the Task* but TaskGrind... have
+    # none, and no feedback is published for them).
+    if state == GoalStatus.SUCCEEDED and getattr(owl, f"{name}Feedback").__slots__:
+        time.sleep(0.2)  # wall: the last feedback messages on their own connection
+        mine = stamps[first:]
+        assert mine, f"{name}: no feedback"
+        span = mine[-1] - mine[0]
+        if span >= 1.0:  # long enough to measure a rate (a move already at its goal is not)
+            rate = (len(mine) - 1) / span
+            assert rate >= MIN_FEEDBACK_HZ, f"{name}: feedback at {rate:.1f} Hz of sim time"
+    return state, c.get_result(), c.get_goal_status_text()
 
 
 def tip(model, arm):
