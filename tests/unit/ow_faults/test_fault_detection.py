@@ -59,12 +59,24 @@ def test_no_force_data_from_the_injector_or_a_silent_sensor():
     assert detector.status.system == System.ARM_EXECUTION_ERROR
     detector.on_injected(FaultSet())
     detector.on_wrist(10.0)
+    detector.on_joint_flags(*flags(), 10.02)
     detector.on_joint_flags(*flags(), 10.5)
     assert detector.status.arm == 0
-    detector.on_joint_flags(*flags(), 10.51)  # over 0.5 s without a reading
+    detector.on_joint_flags(*flags(), 10.53)  # over 0.5 s without a reading
     assert detector.status.arm == Arm.NO_FORCE_DATA
     detector.on_wrist(10.52)
     assert detector.status.arm == 0
+
+
+def test_readings_arriving_late_are_not_silence():
+    # A lagging detector: flags stamped 2 s after the newest reading it has processed, while
+    # readings still arrive between them.
+    detector = FaultDetector()
+    detector.on_wrist(10.0)
+    for k in range(1, 50):
+        detector.on_joint_flags(*flags(), 12.0 + 0.02 * k)
+        detector.on_wrist(10.0 + 0.02 * k)
+        assert detector.status.arm == 0
 
 
 @pytest.mark.parametrize(("soc", "bit"), [(0.1001, 0), (0.1, Power.LOW_STATE_OF_CHARGE)])

@@ -9,6 +9,8 @@ bit                           rule                                              
 ArmFaultsStatus.HARDWARE      an arm joint flagged in ``/flags/joint_states``     flags (sim)
 ArmFaultsStatus.NO_FORCE_DATA the F/T sensor's zero-signal fault is injected, or  injector /
                               no F/T reading for :data:`FT_TIMEOUT_S` of sim time observed
+                              (flags stamped that long after the last reading,
+                              and that long of flags arrived since it)
 PanTilt PAN/TILT_JOINT_LOCKED j_ant_pan / j_ant_tilt flagged                      flags (sim)
 Power LOW_STATE_OF_CHARGE     SOC <= :data:`LOW_SOC`                              observed
 Power INSTANTANEOUS_CAP._LOSS |dSOC| / SOC_prev >= :data:`CAPACITY_LOSS` between  observed
@@ -87,6 +89,7 @@ class FaultDetector:
         self._goal_errors = 0
         self._injected_no_force = False
         self._last_ft_s: float | None = None
+        self._flags_since_ft_s: float | None = None
         self._stale_ft = False
         self._soc: float | None = None
         self._faults = FaultSet()
@@ -107,12 +110,21 @@ class FaultDetector:
         )
         if self._last_ft_s is None:
             self._last_ft_s = stamp_s
-        self._stale_ft = stamp_s - self._last_ft_s > FT_TIMEOUT_S
+        if self._flags_since_ft_s is None:
+            self._flags_since_ft_s = stamp_s
+        # Silent in stamps and in arrival order: the two topics arrive on threads of their own,
+        # and a detector lagging a fast simulation may see flags stamped well after the newest
+        # reading it has processed while readings are still on their way.
+        self._stale_ft = (
+            stamp_s - self._last_ft_s > FT_TIMEOUT_S
+            and stamp_s - self._flags_since_ft_s > FT_TIMEOUT_S
+        )
         return self._update()
 
     def on_wrist(self, stamp_s: float) -> bool:
         """An F/T reading at ``stamp_s`` s."""
         self._last_ft_s = stamp_s
+        self._flags_since_ft_s = None
         self._stale_ft = False
         return self._update()
 

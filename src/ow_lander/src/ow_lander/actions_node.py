@@ -64,7 +64,8 @@ class ArmActions:
         (stops whatever arm execution runs, a goal's or a service's; aborts when none does).
     Goals: a goal with a bad field is rejected naming the field, its value and the limit; a
         goal arriving while another goal or a service request runs is rejected with
-        "busy: <what> is running"; a goal that cannot be planned is aborted with the reason.
+        "busy: <what> is running", or while a fault refuses it (:mod:`ow_lander.fault_reaction`);
+        a goal that cannot be planned, or that a fault stops, is aborted with the reason.
         Cancelling the running goal stops the arm where it is and holds it (PREEMPTED, the
         result filled with where it stopped).
     Feedback: every ``FEEDBACK_PERIOD_S`` of simulation time during execution (actions that
@@ -107,9 +108,10 @@ class ArmActions:
         except OwLanderError as error:
             handle.set_rejected(text=f"{name}: {error}")
             return
-        owner = self.node.claim(f"{name} goal")
-        if owner is not None:
-            handle.set_rejected(text=BUSY.format(owner=owner))
+        refused = self.node.executor.faults.refusal(name)
+        owner = self.node.claim(f"{name} goal") if refused is None else None
+        if refused is not None or owner is not None:
+            handle.set_rejected(text=f"{name}: {refused}" if refused else BUSY.format(owner=owner))
             return
         with self._lock:
             self._running = handle.get_goal_id().id
@@ -190,6 +192,8 @@ class ArmActions:
         self, name: str, request: ActionRequest, result: ExecutionResult
     ) -> tuple[bool, str]:
         """Success and message of an execution, with the action's own checks."""
+        if result.fault is not None:
+            return False, result.message
         if name == "ArmFindSurface" and not result.ground_found and not result.stopped:
             return False, f"No surface was found: {result.message}"
         if not result.success:

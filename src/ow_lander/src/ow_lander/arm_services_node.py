@@ -54,7 +54,9 @@ class ArmServicesNode:
         ``/arm/publish_trajectory`` (PublishTrajectory). Busy policy: one operation at a time,
         shared with the actions (:mod:`ow_lander.actions_node`); a request arriving while
         another request or an action goal is planning or executing is refused with
-        ``success: false`` and a message "busy: <what> is running"; it is not queued.
+        ``success: false`` and a message "busy: <what> is running"; it is not queued. Faults
+        (``ArmExecutor.faults``) refuse requests while their group's goal error or an arm
+        execution error stands (:mod:`ow_lander.fault_reaction`).
     Subscribes: ``/joint_states`` (sensor_msgs/JointState, by joint name): the start of every
         plan and the execution monitor; ``/sim/terrain`` (ow_msgs/HeightMap, latched): the
         terrain checked against; ``/tf``, ``/tf_static``: the scoop tip for ground detection;
@@ -66,14 +68,12 @@ class ArmServicesNode:
         (std_msgs/Float64, rad; ``execution/interface: position_controllers``) for the six arm
         joints; ``/guarded_move_result`` (ow_msgs/GuardedMoveResult, latched) once per guarded
         descent.
-    Calls: ``/sim/pause``, ``/sim/resume`` (std_srvs/Trigger, when the simulation offers them)
-        while a trajectory is delivered.
     Parameters (private, read once, see config/arm_services.yaml): ``trajectory_dir``,
         ``plan_and_execute``, ``fallback_ground_z`` (m), ``terrain_wait_s`` (s), ``planner/*``,
         ``timing/*``, ``execution/*``.
 
-    Execution (the joint states, tf and wrist force, trajectories, holds and ground results)
-    is wired by :class:`~ow_lander.execution_node.ArmExecutor`.
+    Execution (the joint states, tf and wrist force, trajectories, holds, ground results, the
+    /sim/pause and /sim/resume calls) is wired by :class:`~ow_lander.execution_node.ArmExecutor`.
     """
 
     def __init__(self, config: ArmServicesConfig) -> None:
@@ -135,10 +135,11 @@ class ArmServicesNode:
 
         def handle(request: Any) -> Any:
             response = service._response_class()
-            owner = self.claim(f"/arm/{name} service")
-            if owner is not None:
+            refused = self.executor.faults.refusal(name, self.config.execution.ground_detector)
+            owner = self.claim(f"/arm/{name} service") if refused is None else None
+            if refused is not None or owner is not None:
                 response.success = False
-                response.message = BUSY.format(owner=owner)
+                response.message = refused or BUSY.format(owner=owner)
                 return response
             try:
                 self._operation_id += 1

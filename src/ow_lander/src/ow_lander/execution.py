@@ -66,6 +66,7 @@ class ExecutionResult:
         hold: rad by joint name, where the arm was told to hold at the end, or None.
         wrench: (N, N m), force and torque change magnitudes at which a force/torque guard
             stopped the move, or None.
+        fault: the fault that stopped the move (:meth:`ExecutionMonitor.request_stop`), or None.
     """
 
     success: bool
@@ -78,6 +79,7 @@ class ExecutionResult:
     stopped: bool = False
     hold: dict[str, float] | None = None
     wrench: tuple[float, float] | None = None
+    fault: str | None = None
 
 
 @dataclass(frozen=True)
@@ -257,6 +259,7 @@ class ExecutionMonitor:
         self._next_command = t_start
         self.signals: list[DetectorSignal] = []
         self.stop_time: float | None = None
+        self.fault: str | None = None
         self.braking: Braking | None = None
         self.guarded = trajectory.segment_span(GUARDED)
         # The detector watches the *steady* descent (the paper): samples of the acceleration
@@ -338,12 +341,20 @@ class ExecutionMonitor:
             guard.contact_time = t
         return fired
 
-    def request_stop(self, stamp: float) -> None:
-        """Stop at ``stamp`` (s, sim; a cancelled action or ``ArmStop``): the next decision
-        holds the arm at the joint state of that stamp (it brakes); once it is at rest, the
-        arm is held where it came to rest and the execution ends as stopped."""
+    @property
+    def watches_force(self) -> bool:
+        """Whether contact is detected from the wrist F/T sensor (force detector or a guarded
+        action's thresholds)."""
+        return self.guard is not None and self.guard.kind in ("force", "wrench")
+
+    def request_stop(self, stamp: float, fault: str | None = None) -> None:
+        """Stop at ``stamp`` (s, sim; a cancelled action, ``ArmStop``, or a ``fault``): the next
+        decision holds the arm at the joint state of that stamp (it brakes); once it is at rest,
+        the arm is held where it came to rest and the execution ends as stopped, or, for a
+        fault, as failed with the fault in its message."""
         if self.stop_time is None:
             self.stop_time = stamp
+            self.fault = fault
 
     # ------------------------------------------------------------------------------ decisions
     def decide(self, stamp: float, joints: Mapping[str, float]) -> Decision:
@@ -423,12 +434,19 @@ class ExecutionMonitor:
         brake.done |= (np.sign(step) != brake.direction) | (speed < REST_SPEED)
         if not np.all(brake.done) and stamp - self.stop_time < MAX_BRAKING_S:
             return Decision()
+        at = (
+            f"at t={self.stop_time - self.t_start:.2f} s, at rest {stamp - self.stop_time:.2f} s "
+            "later"
+        )
         message = (
-            f"stopped on request at t={self.stop_time - self.t_start:.2f} s, at rest "
-            f"{stamp - self.stop_time:.2f} s later"
+            f"stopped on request {at}"
+            if self.fault is None
+            else f"{self.fault}: the arm stopped {at} and holds there"
         )
         rest = _by_name(names, here)
-        return Decision(None, rest, ExecutionResult(False, message, t, stopped=True, hold=rest))
+        stopped = self.fault is None
+        result = ExecutionResult(False, message, t, stopped=stopped, hold=rest, fault=self.fault)
+        return Decision(None, rest, result)
 
     def _contact(self, here: FloatArray, t: float) -> Decision:
         """Ground found: hold where the arm was at the contact stamp. The simulation may have

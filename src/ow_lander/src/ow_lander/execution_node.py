@@ -23,6 +23,7 @@ from ow_lander.execution import (
     unknown_joints,
     with_settle_pause,
 )
+from ow_lander.faults_watch_node import FaultWatch
 from ow_lander.model import LanderModel
 from ow_lander.sim_clock_node import SimClock, TrajectoryDeliveryError
 from ow_lander.trajectory import Trajectory
@@ -38,6 +39,9 @@ class ArmExecutor(ArmObserver):
         interface ``position_controllers``, and every hold) for the six arm joints;
         ``/guarded_move_result`` (ow_msgs/GuardedMoveResult, latched) once per guarded descent.
     Calls: ``/sim/pause``, ``/sim/resume`` (std_srvs/Trigger) around delivering a trajectory.
+    Faults (:class:`~ow_lander.faults_watch_node.FaultWatch`): an execution stops and fails
+        naming the fault when :meth:`~ow_lander.fault_reaction.FaultReaction.stop_reason` says
+        so (an arm execution error with ``arm_motion_continues_in_fault`` false).
 
     Args:
         config: the ``execution/*`` parameters.
@@ -59,6 +63,18 @@ class ArmExecutor(ArmObserver):
         self.trajectory_pub = rospy.Publisher(
             "/sim/joint_trajectory", JointTrajectory, queue_size=10
         )
+        self.faults = FaultWatch(self._on_fault_status)
+
+    def _on_fault_status(self, stamp: float) -> None:
+        """Stop the running execution, from the fault's stamp, when a fault says so (in a
+        thread of its own: the stop waits for joint states)."""
+        with self._state_changed:
+            monitor = self._monitor
+        if monitor is None or monitor.stop_time is not None:
+            return
+        reason = self.faults.now().stop_reason(monitor.watches_force)
+        if reason is not None:
+            threading.Thread(target=self.stop, args=(reason, stamp), daemon=True).start()
 
     # ------------------------------------------------------------------------------ execution
     def execute(
@@ -93,12 +109,19 @@ class ArmExecutor(ArmObserver):
             )
             self._monitor, self._on_sample = monitor, on_sample
             self._stopped.clear()
+            # A fault that arrived while the trajectory was being delivered.
+            fault = self.faults.now().stop_reason(monitor.watches_force)
+            if fault is not None:
+                monitor.request_stop(self._joint_stamp, fault)
         try:
             result = self._follow(monitor)
         finally:
             with self._state_changed:
                 self._monitor, self._on_sample = None, None
             self._stopped.set()
+        standing = self.faults.now().arm_error()
+        if not result.success and result.fault is None and standing is not None:
+            result.message = f"{standing}: {result.message}"  # e.g. a tracking error it caused
         if result.reports_ground:
             found = result.contact_time
             stamp = rospy.Time.now() if found is None else rospy.Time(found)
@@ -134,10 +157,12 @@ class ArmExecutor(ArmObserver):
                 return decision.result
         return ExecutionResult(False, "shutting down")
 
-    def stop(self) -> bool:
+    def stop(self, fault: str | None = None, stamp: float | None = None) -> bool:
         """Stop the running execution and hold the arm where it comes to rest; False when none
         runs. The simulation's clock is paused from the stop request until the braking hold is
-        delivered, so the arm starts braking at once in simulation time at any speed."""
+        delivered, so the arm starts braking at once in simulation time at any speed. A
+        ``fault`` (its message) makes the execution fail with it, braking from ``stamp`` (s sim,
+        when the fault arose; default: the newest joint state)."""
         paused = self._sim_clock.call("pause")
         try:
             if paused and self._monitor is not None:
@@ -146,7 +171,8 @@ class ArmExecutor(ArmObserver):
             with self._state_changed:
                 monitor = self._monitor
                 if monitor is not None:
-                    monitor.request_stop(self._joint_stamp)
+                    since = self._joint_stamp if stamp is None else min(stamp, self._joint_stamp)
+                    monitor.request_stop(since, fault)
                     self._state_changed.notify_all()
             deadline = time.monotonic() + self.config.joint_state_timeout_s
             while monitor is not None and monitor.braking is None and time.monotonic() < deadline:

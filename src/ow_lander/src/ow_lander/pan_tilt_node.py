@@ -14,6 +14,7 @@ from std_msgs.msg import Float64
 
 from ow_lander.description import ANTENNA_JOINTS
 from ow_lander.errors import GoalError
+from ow_lander.faults_watch_node import FaultWatch
 from ow_lander.pan_tilt import AntennaPointing, check_joints_goal, reached
 from owl_msgs.msg import (
     PanTiltMoveCartesianAction,
@@ -48,6 +49,10 @@ class PanTiltNode:
         A cancel stops the mast where it is and holds it (preempted); a move not done within 30 s
         of sim time is stopped and aborted. Bad goals (NaN/inf, beyond a limit, unknown frame)
         are aborted at once with a status text naming the field, its value and the limit.
+        Faults (:class:`~ow_lander.faults_watch_node.FaultWatch`): a goal is aborted at once
+        while PAN_TILT_GOAL_ERROR stands with ``auto_clear_goal_errors`` false, or while an
+        antenna joint is locked (PAN_TILT_EXECUTION_ERROR); a lock during a move stops the
+        mast where it is and aborts the goal naming the joint.
 
     Subscriptions:
         /joint_states (sensor_msgs/JointState): the mast's joints (and the arm's for frame 1), by
@@ -64,6 +69,7 @@ class PanTiltNode:
         self._lock = threading.Lock()
         self._state: JointState | None = None
         self._busy = threading.Lock()
+        self.faults = FaultWatch()
         self._pan = rospy.Publisher(PAN_COMMAND, Float64, queue_size=10)
         self._tilt = rospy.Publisher(TILT_COMMAND, Float64, queue_size=10)
         rospy.Subscriber("/joint_states", JointState, self._on_joint_state, queue_size=1)
@@ -157,12 +163,22 @@ class PanTiltNode:
             rospy.logwarn(f"pan_tilt: goal refused: {error}")
             server.set_aborted(result(*self._antenna(q)), f"goal refused: {error}")
             return
+        refused = self.faults.now().refusal("pan_tilt")
+        if refused is not None:
+            server.set_aborted(result(*self._antenna(q)), f"goal refused: {refused}")
+            return
         self._command(*goal)
         deadline = rospy.get_rostime().to_sec() + MOVE_TIMEOUT_S
         rate = rospy.Rate(FEEDBACK_HZ)
         while not rospy.is_shutdown():
             q = self._configuration()
             pan, tilt = self._antenna(q) if q is not None else (np.nan, np.nan)
+            fault = self.faults.now().pan_tilt_error()
+            if fault is not None:
+                self._command(pan, tilt)
+                text = f"{fault}: stopped at pan {pan:.3f}, tilt {tilt:.3f} rad"
+                server.set_aborted(result(pan, tilt), text)
+                return
             if server.is_preempt_requested():
                 self._command(pan, tilt)
                 server.set_preempted(
