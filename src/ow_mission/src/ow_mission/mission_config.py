@@ -18,6 +18,7 @@ import yaml
 from ow_lander.description import DEFAULT_GROUND_Z, MAX_GRIND_DEPTH, MAX_LENGTH, MAX_SCOOP_DEPTH
 from ow_lander.params import Params, suggest
 from ow_mission.errors import ConfigError
+from ow_mission.fault_schedule import MISSION_STEPS, ScheduledFault, parse_schedule
 from ow_mission.node_config import STACK_NODES
 
 #: The default mission file shipped with the workspace.
@@ -60,6 +61,8 @@ class MissionConfig:
         node_params: extra private parameters per node name (sim, arm_services, power, record).
         interface: "services" (the paper's) or "actions" (OceanWATERS' owl_msgs actions,
             :mod:`ow_mission.action_steps`): how the steps are called.
+        faults: fault parameter changes at a step or a simulation time
+            (:mod:`ow_mission.fault_schedule`), applied through the ``/faults`` server.
     """
 
     name: str = "sample collection"
@@ -84,6 +87,7 @@ class MissionConfig:
     renders: bool = True
     node_params: dict[str, dict[str, Any]] = field(default_factory=dict)
     interface: str = "services"
+    faults: tuple[ScheduledFault, ...] = ()
 
     @classmethod
     def from_dict(cls, raw: Mapping[str, Any]) -> MissionConfig:
@@ -160,6 +164,7 @@ class MissionConfig:
             renders=p.boolean("renders", d.renders),
             node_params={str(k): dict(v) for k, v in node_params.items()},
             interface=p.string("interface", d.interface, choices=("services", "actions")),
+            faults=parse_schedule(p.raw("faults", []), MISSION_STEPS, p.problem),
         )
         p.finish()
         return config

@@ -1,0 +1,146 @@
+"""A mission's fault schedule (the mission file's ``faults`` key), validated at load time, no ROS.
+
+Each entry changes ``/faults`` parameters (OceanWATERS' names, checked by
+:class:`ow_faults.injection.FaultSet`) at a simulation time: ``at_time_s`` from the start of the
+simulation, or ``after_s`` (default 0) after the start of step ``at_step``::
+
+    faults:
+      - {at_step: grind, after_s: 3.0, set: {shou_pitch_joint_locked_failure: true}}
+      - {at_time_s: 120.0, set: {high_power_draw: 200.0, activate_high_power_draw: true}}
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from ow_faults.errors import FaultError
+from ow_faults.injection import FaultSet
+from ow_lander.params import suggest
+
+#: The mission's steps, in order (``ow_mission.mission.STEPS``; a unit test checks they agree).
+MISSION_STEPS = (
+    "unstow",
+    "guarded_move",
+    "grind",
+    "dig_spoil",
+    "discard_spoil",
+    "grind_bottom",
+    "dig_sample",
+    "deliver_sample",
+    "stow",
+)
+#: The keys of one entry.
+ENTRY_KEYS = ("at_step", "after_s", "at_time_s", "set")
+
+
+@dataclass(frozen=True)
+class ScheduledFault:
+    """One change of the fault parameters.
+
+    Attributes:
+        changes: parameter -> value (each checked against ``cfg/Faults.cfg``'s type and range).
+        at_step: the step at whose start it is due, or None (``at_time_s``).
+        after_s: s of simulation time after the step's start.
+        at_time_s: s of simulation time from the start of the simulation, or None (``at_step``).
+    """
+
+    changes: dict[str, Any] = field(default_factory=dict)
+    at_step: str | None = None
+    after_s: float = 0.0
+    at_time_s: float | None = None
+
+    def due_s(self, step_starts: Mapping[str, float]) -> float | None:
+        """s (sim) at which it is due, given the start of each step so far (None: its step has
+        not started)."""
+        if self.at_time_s is not None:
+            return self.at_time_s
+        start = step_starts.get(str(self.at_step))
+        return None if start is None else start + self.after_s
+
+    def describe(self) -> str:
+        """E.g. ``shou_pitch_joint_locked_failure: true at grind + 3.0 s``."""
+        what = ", ".join(f"{k}: {_yaml(v)}" for k, v in self.changes.items())
+        when = (
+            f"at t = {self.at_time_s:g} s"
+            if self.at_time_s is not None
+            else f"at {self.at_step} + {self.after_s:g} s"
+        )
+        return f"{what} {when}"
+
+
+def _yaml(value: Any) -> str:
+    return str(value).lower() if isinstance(value, bool) else repr(value)
+
+
+def _number(value: Any) -> float | None:
+    ok = isinstance(value, int | float) and not isinstance(value, bool)
+    return float(value) if ok and math.isfinite(value) and value >= 0 else None
+
+
+def parse_schedule(
+    raw: Any, steps: Iterable[str], problem: Callable[[str], None]
+) -> tuple[ScheduledFault, ...]:
+    """The schedule of a mission file's ``faults`` value; each problem is passed to
+    ``problem`` with a message naming the key and value (``mission/faults[0]/set: ...``), and
+    the bad entry left out.
+
+    Args:
+        raw: the ``faults`` value (a list of mappings).
+        steps: the mission's step names.
+        problem: collects a problem.
+    """
+    if not isinstance(raw, list):
+        problem(f"mission/faults must be a list of entries, got {raw!r}")
+        return ()
+    names = list(steps)
+    schedule = []
+    for i, entry in enumerate(raw):
+        key = f"mission/faults[{i}]"
+        if not isinstance(entry, Mapping):
+            problem(f"{key} must be a mapping ({', '.join(ENTRY_KEYS)}), got {entry!r}")
+            continue
+        bad = [k for k in entry if k not in ENTRY_KEYS]
+        for k in bad:
+            problem(f"unknown key '{key}/{k}'{suggest(str(k), list(ENTRY_KEYS))}")
+        parsed = _entry(key, entry, names, problem)
+        if parsed is not None and not bad:
+            schedule.append(parsed)
+    return tuple(schedule)
+
+
+def _entry(
+    key: str, entry: Mapping[str, Any], steps: list[str], problem: Callable[[str], None]
+) -> ScheduledFault | None:
+    changes = entry.get("set")
+    if not isinstance(changes, Mapping) or not changes:
+        problem(f"{key}/set must map fault parameters to values, got {changes!r}")
+        return None
+    try:
+        FaultSet().changed(changes)
+    except FaultError as error:
+        problem(f"{key}/set: {error}")
+        return None
+    step, time_s = entry.get("at_step"), entry.get("at_time_s")
+    if (step is None) == (time_s is None):
+        problem(f"{key} needs exactly one of at_step and at_time_s, got {dict(entry)!r}")
+        return None
+    if time_s is not None:
+        at_time = _number(time_s)
+        if at_time is None or "after_s" in entry:
+            problem(f"{key}/at_time_s = {time_s!r} must be a number >= 0 s (without after_s)")
+            return None
+        return ScheduledFault(dict(changes), at_time_s=at_time)
+    if step not in steps:
+        problem(
+            f"{key}/at_step = {step!r} is not a step of the mission (steps: "
+            f"{', '.join(steps)}){suggest(str(step), steps)}"
+        )
+        return None
+    after = _number(entry.get("after_s", 0.0))
+    if after is None:
+        problem(f"{key}/after_s = {entry.get('after_s')!r} must be a number >= 0 s")
+        return None
+    return ScheduledFault(dict(changes), at_step=str(step), after_s=after)
