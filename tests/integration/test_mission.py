@@ -28,6 +28,7 @@ import yaml
 from ow_lander.conversions import height_map_from_msg
 from ow_lander.model import URDF_PATH, LanderModel
 from ow_lander.operations import DOCK_CENTRE, POUR_TILT
+from ow_mission.mission import MISSION_TELEMETRY_HZ
 from ow_power.analysis import analyze, window_figures
 from ow_sim_bullet.terrains import parse_terrain_spec
 
@@ -344,3 +345,24 @@ def test_every_bag_replays_in_a_viewer(mission):
                     c.header.get("latching") for c in bag._connections.values() if c.topic == topic
                 ]
                 assert flags and all(f == b"1" for f in flags), f"{path.name}: {topic} {flags}"
+
+
+def test_the_bags_carry_oceanwaters_telemetry(mission):
+    """/arm_joint_positions at 10 Hz of sim time (the mission's telemetry rate), each in
+    OceanWATERS' order (sorted joint names without the antenna) and equal to the /joint_states
+    message of the same stamp; /arm_pose and the wrist F/T recorded too."""
+    states = {
+        round(msg.header.stamp.to_sec(), 6): dict(zip(msg.name, msg.position, strict=True))
+        for msg, _ in _messages(mission.bags, "/joint_states")
+    }
+    positions = [msg for msg, _ in _messages(mission.bags, "/arm_joint_positions")]
+    stamps = np.array([m.header.stamp.to_sec() for m in positions])
+    assert np.all(np.diff(stamps) > 0)
+    rate = (len(stamps) - 1) / (stamps[-1] - stamps[0])
+    assert rate == pytest.approx(MISSION_TELEMETRY_HZ, rel=0.02)
+    order = sorted(n for n in next(iter(states.values())) if not n.startswith("j_ant"))
+    for msg in positions[:: max(1, len(positions) // 50)]:
+        state = states[round(msg.header.stamp.to_sec(), 6)]
+        assert list(msg.value) == [state[n] for n in order]
+    for topic in ("/arm_pose", "/arm_end_effector_force_torque", "/arm_joint_torques"):
+        assert next(_messages(mission.bags, topic), None) is not None, topic

@@ -10,10 +10,13 @@ import numpy as np
 import pytest
 
 from ow_lander.description import ALL_JOINTS, URDF_PATH
+from ow_lander.errors import ConfigError
 from ow_lander.telemetry import (
     PAN_TILT_JOINTS,
     TELEMETRY_ARM_JOINTS,
+    RateGate,
     TelemetryBuilder,
+    TelemetryConfig,
     TelemetryError,
 )
 
@@ -203,3 +206,23 @@ def test_all_joints_zero_put_the_scoop_where_the_spec_says(builder):
     names = sorted(ALL_JOINTS)
     t = builder.update(0.0, names, [0.0] * len(names))
     assert np.allclose(t.scoop_position, [2.266, 0.025, -0.043], atol=1e-3)
+
+
+def test_the_rate_gate_passes_the_first_stamp_of_each_period_only():
+    gate = RateGate(10.0)
+    stamps = [0.0, 0.01, 0.09, 0.1, 0.15, 0.2, 0.31, 0.35, 0.4]
+    assert [t for t in stamps if gate.passes(t)] == [0.0, 0.1, 0.2, 0.31, 0.4]
+    # A stamp on a multiple of the period that floating point puts a hair below it still passes.
+    gate = RateGate(10.0)
+    assert [gate.passes(k * 0.01) for k in range(31)].count(True) == 4  # 0, 0.1, 0.2, 0.3
+    every = RateGate(0.0)
+    assert all(every.passes(t) for t in stamps)
+
+
+def test_telemetry_config_defaults_and_refusals():
+    assert TelemetryConfig.from_dict({}).rate_hz == 0.0
+    assert TelemetryConfig.from_dict({"rate_hz": 20}).rate_hz == 20.0
+    with pytest.raises(ConfigError, match=r"telemetry/rate_hz = -1"):
+        TelemetryConfig.from_dict({"rate_hz": -1.0})
+    with pytest.raises(ConfigError, match=r"telemetry/rate"):
+        TelemetryConfig.from_dict({"rate": 5.0})

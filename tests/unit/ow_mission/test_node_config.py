@@ -7,6 +7,7 @@ from typing import Any
 import pytest
 
 from ow_lander.config import ArmServicesConfig
+from ow_lander.telemetry import TelemetryConfig
 from ow_mission.errors import ConfigError
 from ow_mission.node_config import STACK_NODES, merge, shipped_parameters, stack_parameters
 from ow_power.config import BatteryConfig, PowerConfig, RecorderConfig
@@ -20,6 +21,7 @@ PARSERS: dict[str, Callable[[Any], Any]] = {
     "battery": BatteryConfig.from_dict,
     "record": RecorderConfig.from_dict,
     "viz": VizConfig.from_dict,
+    "telemetry": TelemetryConfig.from_dict,
 }
 
 

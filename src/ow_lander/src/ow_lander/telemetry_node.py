@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import time
 import warnings
 
@@ -11,7 +12,14 @@ from geometry_msgs.msg import Point, Pose, Quaternion
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
-from ow_lander.telemetry import ARM_POSE_FRAME, TelemetryBuilder, TelemetryError
+from ow_lander.errors import ConfigError
+from ow_lander.telemetry import (
+    ARM_POSE_FRAME,
+    RateGate,
+    TelemetryBuilder,
+    TelemetryConfig,
+    TelemetryError,
+)
 from owl_msgs.msg import (
     ArmJointAccelerations,
     ArmJointPositions,
@@ -34,7 +42,8 @@ PUBLISH_QUEUE = None
 
 class TelemetryNode:
     """The ``telemetry`` node: OceanWATERS' joint telemetry, one message of each topic for every
-    ``/joint_states`` message, stamped with its stamp (owl_msgs; orders in docs/telemetry.md).
+    ``/joint_states`` message (or at ``~rate_hz`` of simulation time), stamped with its stamp
+    (owl_msgs; orders in docs/telemetry.md).
 
     Subscriptions:
         /joint_states (sensor_msgs/JointState): read by joint name; every lander joint needed.
@@ -51,12 +60,14 @@ class TelemetryNode:
         /arm_pose (owl_msgs/ArmPose): pose of l_scoop in base_link (m, unit quaternion),
             frame_id base_link.
 
-    Parameters: none; no clock either (it does not subscribe to /clock). At shutdown the node
-    logs the process CPU time it used per joint state.
+    Parameters: ``~rate_hz`` (Hz of sim time, 0 = every joint state; config/telemetry.yaml,
+    :class:`~ow_lander.telemetry.TelemetryConfig`). No clock (it does not subscribe to /clock).
+    At shutdown the node logs the process CPU time it used per joint state.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, config: TelemetryConfig) -> None:
         self.builder = TelemetryBuilder()
+        self.gate = RateGate(config.rate_hz)
         self.count = 0
         #: s of CPU time spent in the callback (building, serialising, publishing).
         self.callback_cpu = 0.0
@@ -94,6 +105,8 @@ class TelemetryNode:
             # Without a clock rospy's time stands still: each distinct message is logged once.
             rospy.logwarn_throttle_identical(5.0, f"telemetry: joint state skipped: {error}")
             return
+        if not self.gate.passes(stamp.to_sec()):
+            return
         header = Header(stamp=stamp)
         self._positions.publish(ArmJointPositions(header, t.positions))
         self._velocities.publish(ArmJointVelocities(header, t.velocities))
@@ -123,7 +136,12 @@ def main() -> None:
     clock = getattr(rospy.impl.simtime, "_clock_sub", None)
     if clock is not None:
         clock.unregister()
-    node = TelemetryNode()
+    try:
+        config = TelemetryConfig.from_dict(rospy.get_param("~", {}))
+    except ConfigError as error:
+        rospy.logfatal(f"telemetry: {error}")
+        sys.exit(1)
+    node = TelemetryNode(config)
 
     def report() -> None:
         rospy.loginfo(

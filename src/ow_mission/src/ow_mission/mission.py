@@ -315,6 +315,10 @@ def write_report(report: MissionReport) -> None:
         step.peak_power_w = float(row["peak_power_w"])
 
 
+#: Hz of sim time, the rate of the telemetry topics the mission records.
+MISSION_TELEMETRY_HZ = 10.0
+
+
 def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str, Any]]:
     """Private parameters of each node of the mission's stack: the packages' YAML files (as the
     launch files load them), then the mission's own settings, then its ``node_params``."""
@@ -332,6 +336,9 @@ def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str,
             "plan_and_execute": True,
             "trajectory_dir": str(run_dir / "trajectories"),
         },
+        # OceanWATERS' telemetry in the bags at 10 Hz of sim time (the full-rate /joint_states
+        # are there too); node_params {telemetry: {rate_hz: 0}} records one per joint state.
+        "telemetry": {"rate_hz": MISSION_TELEMETRY_HZ},
         "record": {
             "output_dir": str(run_dir / "bags"),
             "prefix": "mission",

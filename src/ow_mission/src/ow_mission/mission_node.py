@@ -131,6 +131,7 @@ class MissionRunner:
             "sim": (("/sim/resume",), ("/joint_states",)),
             "arm_services": (tuple(s.service.format(dig=self.config.dig) for s in STEPS), ()),
             "viz": ((), ("/robot_description",)),
+            "telemetry": ((), ("/arm_joint_positions",)),
         }
         nodes = [
             stack.start_node(n.package, n.executable, params=params[n.executable], wait=False)

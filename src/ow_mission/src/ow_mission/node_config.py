@@ -13,6 +13,7 @@ node (executable)       files (package ``config/``)          part loaded as the 
 ``battery``             ``ow_power``: power.yaml             its ``battery:`` section
 ``record``              ``ow_power``: power.yaml             its ``record:`` section
 ``viz``                 ``ow_viz``: viz.yaml                 the whole file
+``telemetry``           ``ow_lander``: telemetry.yaml        its ``telemetry:`` section
 ======================  ===================================  ======================================
 """
 
@@ -27,6 +28,7 @@ from typing import Any
 import yaml
 
 from ow_lander.config import CONFIG_FILE as ARM_SERVICES_YAML
+from ow_lander.telemetry import CONFIG_FILE as TELEMETRY_YAML
 from ow_mission.errors import ConfigError
 from ow_power.config import CONFIG_FILE as POWER_YAML
 from ow_sim_bullet.config import PID_YAML, SIM_YAML
@@ -56,6 +58,7 @@ STACK_NODES: tuple[NodeFiles, ...] = (
     NodeFiles("ow_sim_bullet", "sim", ((SIM_YAML, ""), (PID_YAML, ""))),
     NodeFiles("ow_lander", "arm_services", ((ARM_SERVICES_YAML, "arm_services"),)),
     NodeFiles("ow_viz", "viz", ((VIZ_YAML, ""),)),
+    NodeFiles("ow_lander", "telemetry", ((TELEMETRY_YAML, "telemetry"),)),
 )
 
 

@@ -31,6 +31,14 @@ DEFAULT_RECORD_TOPICS: tuple[str, ...] = (
     "/sim/scoop_wrench",
     "/sim/grinder_wrench",
     "/sim/joint_damping",
+    # OceanWATERS' telemetry (owl_msgs; the ow_lander telemetry node, the sim's wrist F/T).
+    "/arm_joint_positions",
+    "/arm_joint_velocities",
+    "/arm_joint_accelerations",
+    "/arm_joint_torques",
+    "/arm_pose",
+    "/pan_tilt_position",
+    "/arm_end_effector_force_torque",
     # For viewers (RViz through `rosbag play --clock`, Foxglove, Lichtblick): the frames, the
     # robot and the markers of ow_viz; the latched ones are repeated in every file of a run.
     "/tf",
