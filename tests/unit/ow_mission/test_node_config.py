@@ -6,6 +6,7 @@ from typing import Any
 
 import pytest
 
+from ow_faults.injection import FaultSet
 from ow_lander.config import ArmServicesConfig
 from ow_lander.telemetry import TelemetryConfig
 from ow_mission.errors import ConfigError
@@ -22,6 +23,8 @@ PARSERS: dict[str, Callable[[Any], Any]] = {
     "record": RecorderConfig.from_dict,
     "viz": VizConfig.from_dict,
     "telemetry": TelemetryConfig.from_dict,
+    "faults": FaultSet.from_dict,
+    "detector": dict,  # no parameters
 }
 
 

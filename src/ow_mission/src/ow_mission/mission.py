@@ -315,6 +315,17 @@ def write_report(report: MissionReport) -> None:
         step.peak_power_w = float(row["peak_power_w"])
 
 
+#: The fault status topics (owl_msgs), in the report's order.
+FAULT_STATUS_TOPICS = (
+    "/arm_faults_status",
+    "/pan_tilt_faults_status",
+    "/power_faults_status",
+    "/system_faults_status",
+)
+#: Fault topics the mission records: the status topics, the simulation's locked-joint flags and
+#: the /faults server's configuration.
+FAULT_TOPICS = (*FAULT_STATUS_TOPICS, "/flags/joint_states", "/faults/parameter_updates")
+
 #: Hz of sim time, the rate of the telemetry topics the mission records.
 MISSION_TELEMETRY_HZ = 10.0
 
@@ -353,6 +364,9 @@ def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str,
                 "/battery_remaining_useful_life",
                 "/battery_temperature",
                 "/battery_state",
+                # The faults: what the server holds, what the simulation flags, what the
+                # detector reports (the report's faults section).
+                *FAULT_TOPICS,
             ],
         },
     }

@@ -14,6 +14,8 @@ node (executable)       files (package ``config/``)          part loaded as the 
 ``record``              ``ow_power``: power.yaml             its ``record:`` section
 ``viz``                 ``ow_viz``: viz.yaml                 the whole file
 ``telemetry``           ``ow_lander``: telemetry.yaml        its ``telemetry:`` section
+``faults``              ``ow_faults``: faults.yaml           its ``faults:`` section
+``detector``            (none: it has no parameters)
 ======================  ===================================  ======================================
 """
 
@@ -27,12 +29,16 @@ from typing import Any
 
 import yaml
 
+from ow_faults.injection import PROFILE_DIR as FAULTS_CONFIG_DIR
 from ow_lander.config import CONFIG_FILE as ARM_SERVICES_YAML
 from ow_lander.telemetry import CONFIG_FILE as TELEMETRY_YAML
 from ow_mission.errors import ConfigError
 from ow_power.config import CONFIG_FILE as POWER_YAML
 from ow_sim_bullet.config import PID_YAML, SIM_YAML
 from ow_viz.config import CONFIG_FILE as VIZ_YAML
+
+#: The faults server's launch-time parameters (``ow_faults/config/faults.yaml``).
+FAULTS_YAML = FAULTS_CONFIG_DIR / "faults.yaml"
 
 
 @dataclass(frozen=True)
@@ -59,6 +65,8 @@ STACK_NODES: tuple[NodeFiles, ...] = (
     NodeFiles("ow_lander", "arm_services", ((ARM_SERVICES_YAML, "arm_services"),)),
     NodeFiles("ow_viz", "viz", ((VIZ_YAML, ""),)),
     NodeFiles("ow_lander", "telemetry", ((TELEMETRY_YAML, "telemetry"),)),
+    NodeFiles("ow_faults", "faults", ((FAULTS_YAML, "faults"),)),
+    NodeFiles("ow_faults", "detector", ()),
 )
 
 
