@@ -71,18 +71,11 @@ def test_a_huge_setpoint_leaves_the_joint_on_its_upper_limit_and_the_arm_recover
     unstow_and_check(stack)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "at j_shou_yaw -1.8 rad the planner's collision model has l_prox inside the lander body "
-        "(the simulation has no arm-body contacts; collision-free only above about -1.56 rad, "
-        "OceanWATERS' later limit), and no operation plans from a start in collision: needs an "
-        "escape motion in ow_lander.motions"
-    ),
-)
 def test_a_huge_negative_setpoint_leaves_the_joint_on_its_lower_limit_and_the_arm_recovers(
     stack,
 ):
+    """At -1.8 rad the planner's model has l_prox inside the lander body (the simulation has no
+    arm-lander contacts): the unstow starts with an escape towards the unstowed pose."""
     unstow_and_check(stack)
     position = drive_onto_limit(-1e9, SHOU_YAW_LIMITS[0])
     assert position >= SHOU_YAW_LIMITS[0] - 0.005

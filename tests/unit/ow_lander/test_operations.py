@@ -2,6 +2,7 @@
 
 import itertools
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -267,3 +268,32 @@ def test_approach_takes_the_near_turn_of_a_wrist_left_a_turn_away(ops, terrain):
     assert abs(approach[-1, hand] - approach[0, hand]) < math.pi
     assert abs(np.diff(approach[:, hand])).sum() < math.pi
     _check_collision_free(ops, q, terrain, plan)
+
+
+def test_a_start_inside_the_lander_model_is_left_by_an_escape_first(ops, terrain):
+    """The shoulder yaw on its -1.8 rad limit (where a -1e9 set-point leaves it: the simulation
+    has no arm-lander contacts) puts l_prox inside the lander body of the planner's model. Every
+    operation then starts with a straight move towards the unstowed pose that ends collision-free
+    (and no further than 0.05 rad past the first collision-free state); the rest of the plan is
+    collision-free as usual."""
+    q = _q(ops.model, {**UNSTOWED, "j_shou_yaw": -1.8})
+    arm = ops.planner.arm(q)
+    assert not ops.planner.is_valid(arm, CheckContext(q, None))
+    for name, request_ in (("unstow", None), ("stow", None), ("grind", {"use_defaults": True})):
+        plan = ops.plan(name, q, terrain, request_)
+        escape = plan.segments[0]
+        assert escape.label == "escape"
+        start, end = escape.waypoints
+        assert np.array_equal(start, arm)
+        assert ops.planner.is_valid(end, CheckContext(q, terrain))
+        back = end - (end - start) * (0.06 / np.max(np.abs(end - start)))  # 0.06 rad back
+        assert not ops.planner.is_valid(back, CheckContext(q, None))  # out, and not much further
+        _check_collision_free(
+            ops, ops.planner.full(end, q), terrain, replace(plan, segments=plan.segments[1:])
+        )
+        assert "moved out first" in " ".join(plan.notes)
+
+
+def test_no_escape_from_a_valid_start(ops, terrain):
+    assert ops.motions.escape(_q(ops.model, STOWED), terrain) is None
+    assert ops.plan("unstow", _q(ops.model, STOWED), terrain).segments[0].label != "escape"

@@ -22,11 +22,12 @@ from ow_lander.description import (
     GRINDER_TIP_FRAME,
     SCOOP_LINK,
     SCOOP_TIP_FRAME,
+    UNSTOWED,
 )
 from ow_lander.errors import PlanningError
 from ow_lander.planning import ArmPlanner
 from ow_lander.terrain import HeightMap
-from ow_lander.validity import CheckContext
+from ow_lander.validity import CheckContext, densify
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -100,6 +101,10 @@ def line(start: FloatArray, end: FloatArray, step: float) -> list[FloatArray]:
     start, end = np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64)
     n = max(1, math.ceil(float(np.linalg.norm(end - start)) / step - 1e-9))
     return [start + (end - start) * (i / n) for i in range(1, n + 1)]
+
+
+#: rad, how far past its first collision-free state an escape from a contact goes.
+ESCAPE_MARGIN_RAD = 0.05
 
 
 class ArmMotions:
@@ -211,6 +216,46 @@ class ArmMotions:
             msg = f"the arm's current configuration is invalid: {self.planner.explain(arm, ctx)}"
             raise PlanningError(msg)
         return arm
+
+    def escape(self, q: FloatArray, terrain: HeightMap | None) -> FloatArray | None:
+        """(2, 6) rad, a straight move out of a configuration in which the arm touches the
+        lander or itself, or None when it touches neither.
+
+        The simulation has no arm-lander contacts, so a set-point beyond where the planner's
+        model lets the arm go leaves the arm inside the lander's collision model (the shoulder
+        yaw driven onto its -1.8 rad limit puts l_prox in the body), and no plan may start in
+        collision. The escape follows the straight joint-space line towards the unstowed pose
+        to ``ESCAPE_MARGIN_RAD`` past its first collision-free state; from that state on the
+        line is checked against the terrain too.
+
+        Raises:
+            PlanningError: no collision-free state on that line, or the terrain blocks it.
+        """
+        arm = self.planner.arm(q)
+        body = self.context(q, None)
+        if self.planner.is_valid(arm, body):
+            return None
+        resolution = self.planner.config.joint_resolution_rad
+        goal = np.array([UNSTOWED[j] for j in ARM_JOINTS])
+        states = densify(np.vstack([arm, goal]), resolution)
+        free = next((i for i, s in enumerate(states) if self.planner.is_valid(s, body)), None)
+        if free is None:
+            msg = (
+                "the arm's current configuration is invalid and no straight move towards the "
+                f"unstowed pose frees it: {self.planner.explain(arm, body)}"
+            )
+            raise PlanningError(msg)
+        end = states[min(free + math.ceil(ESCAPE_MARGIN_RAD / resolution), len(states) - 1)]
+        blocked = self.planner.first_invalid(
+            np.vstack([states[free], end]), self.context(q, terrain)
+        )
+        if blocked is not None:
+            msg = (
+                "the arm's current configuration touches the lander and the move out of it is "
+                f"blocked: {self.planner.explain(blocked, self.context(q, terrain))}"
+            )
+            raise PlanningError(msg)
+        return np.vstack([arm, end])
 
     def lift_off(self, q: FloatArray, terrain: HeightMap | None) -> FloatArray | None:
         """(n, 6) rad path lifting a tool off the terrain, or None when no tool is near it.

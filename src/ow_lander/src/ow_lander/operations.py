@@ -92,12 +92,17 @@ class Operations:
         if name not in planners:
             msg = f"unknown operation {name!r}; known: {', '.join(planners)}"
             raise PlanningError(msg)
+        escape = self.motions.escape(q, terrain)
+        if escape is not None:
+            q = self.planner.full(escape[-1], q)
         lift = self.motions.lift_off(q, terrain)
-        if lift is None:
-            return planners[name](q)
-        plan = planners[name](self.planner.full(lift[-1], q))
-        plan.segments.insert(0, PathSegment("lift_off", lift))
-        plan.notes.append("started with a tool in the terrain: lifted it out first")
+        plan = planners[name](q if lift is None else self.planner.full(lift[-1], q))
+        if lift is not None:
+            plan.segments.insert(0, PathSegment("lift_off", lift))
+            plan.notes.append("started with a tool in the terrain: lifted it out first")
+        if escape is not None:
+            plan.segments.insert(0, PathSegment("escape", escape))
+            plan.notes.append("started touching the lander's collision model: moved out first")
         return plan
 
     def plan_unstow(self, q: FloatArray, terrain: HeightMap | None) -> OperationPlan:
