@@ -1,15 +1,14 @@
 """The task actions and the guarded arm actions on the simulation: each succeeds and its
-result matches where the arm is (forward kinematics of /joint_states)."""
+result matches where the arm is (forward kinematics of /joint_states). The stack, joint log and
+model fixtures are test_actions' (imported: one definition)."""
+# ruff: noqa: F811  (pytest passes the imported fixtures as arguments of the same names)
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
-import pytest
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import Point, Pose, Quaternion
-from test_actions import JointLog, client, run, tip
+from test_actions import joints, model, run, stack, tip  # noqa: F401 (fixtures)
 
 import owl_msgs.msg as owl
 from ow_lander.actions import quaternion_from_rotation
@@ -19,32 +18,10 @@ from ow_lander.description import (
     SCOOP_ABOVE_GROUND,
     SCOOP_BELOW_GROUND,
 )
-from ow_lander.model import LanderModel
 from ow_lander.operations import DOCK_CENTRE, DOCK_POUR_HEIGHT
 from ow_mission.testing import set_terrain
 
 GROUND = DEFAULT_GROUND_Z
-
-
-@pytest.fixture(scope="module")
-def stack(start_lander):
-    client.cache_clear()  # the clients of another module's servers
-    return start_lander(sim_topics=["/joint_states", "/arm_end_effector_force_torque"])
-
-
-@pytest.fixture(scope="module")
-def joints(stack):
-    log = JointLog()
-    deadline = time.monotonic() + 10
-    while not log.samples and time.monotonic() < deadline:
-        time.sleep(0.05)
-    yield log
-    log.sub.unregister()
-
-
-@pytest.fixture(scope="module")
-def model():
-    return LanderModel()
 
 
 def _ok(name, goal, timeout=600.0):
