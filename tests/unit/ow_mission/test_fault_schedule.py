@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from ow_mission.errors import ConfigError
-from ow_mission.fault_schedule import MISSION_STEPS, ScheduledFault
+from ow_mission.fault_schedule import MISSION_STEPS, ScheduledFault, ScheduleTimer
 from ow_mission.mission import STEPS
 from ow_mission.mission_config import MissionConfig
 
@@ -84,3 +84,70 @@ def test_bad_schedules_are_refused_naming_key_and_value(faults, message):
     with pytest.raises(ConfigError) as error:
         MissionConfig.from_dict({"faults": faults})
     assert message in str(error.value)
+
+
+# ------------------------------------------------------------------------ when entries come due
+LOCK = {"shou_pitch_joint_locked_failure": True}
+DRAW = {"high_power_draw": 200.0, "activate_high_power_draw": True}
+
+
+def _timer() -> ScheduleTimer:
+    return ScheduleTimer(
+        [
+            ScheduledFault(LOCK, at_step="grind", after_s=3.0),
+            ScheduledFault(DRAW, at_time_s=20.0),
+            ScheduledFault({"enable": True}, at_step="unstow"),
+        ]
+    )
+
+
+def test_an_entry_at_a_step_is_due_after_the_steps_start_and_not_before():
+    timer = _timer()
+    assert timer.due(1000.0) == [(1, timer.schedule[1], 20.0)]  # grind, unstow not started
+    timer.step_started("grind", 40.0)
+    assert timer.due(42.99) == []
+    assert timer.due(43.0) == [(0, timer.schedule[0], 43.0)]
+
+
+def test_an_entry_at_a_steps_start_is_due_at_that_start():
+    timer = _timer()
+    timer.step_started("unstow", 0.5)
+    assert [index for index, _, _ in timer.due(0.5)] == [2]
+
+
+@pytest.mark.parametrize(
+    ("now_s", "expected"),
+    [(19.0, [2]), (20.0, [2, 1]), (60.0, [2, 1, 0])],
+)
+def test_entries_come_due_once_in_order_of_due_time(now_s, expected):
+    timer = _timer()
+    timer.step_started("unstow", 0.0)
+    timer.step_started("grind", 40.0)
+    assert [index for index, _, _ in timer.due(now_s)] == expected
+    assert timer.due(now_s) == []  # handed out once
+    assert [f.index for f in timer.never_due()] == [i for i in (0, 1, 2) if i not in expected]
+
+
+def test_a_step_started_again_keeps_its_first_start():
+    timer = _timer()
+    timer.step_started("grind", 40.0)
+    timer.step_started("grind", 90.0)
+    assert (0, timer.schedule[0], 43.0) in timer.due(43.0)
+
+
+def test_entries_that_never_came_due_are_reported_not_applied():
+    timer = _timer()
+    timer.due(25.0)
+    left = timer.never_due()
+    assert [(f.index, f.due_s, f.applied_s, f.applied) for f in left] == [
+        (0, None, None, False),
+        (2, None, None, False),
+    ]
+    assert left[0].to_json() == {
+        "index": 0,
+        "description": "shou_pitch_joint_locked_failure: true at grind + 3 s",
+        "changes": LOCK,
+        "due_s": None,
+        "applied_s": None,
+        "error": "",
+    }

@@ -7,6 +7,10 @@ simulation, or ``after_s`` (default 0) after the start of step ``at_step``::
     faults:
       - {at_step: grind, after_s: 3.0, set: {shou_pitch_joint_locked_failure: true}}
       - {at_time_s: 120.0, set: {high_power_draw: 200.0, activate_high_power_draw: true}}
+
+:class:`ScheduleTimer` says which entries are due from the simulation time and the steps'
+starts; :class:`AppliedFault` is what the run did with one (``report.json``'s
+``fault_schedule``). ``ow_mission.fault_schedule_node`` applies them through ``/faults``.
 """
 
 from __future__ import annotations
@@ -144,3 +148,81 @@ def _entry(
         problem(f"{key}/after_s = {entry.get('after_s')!r} must be a number >= 0 s")
         return None
     return ScheduledFault(dict(changes), at_step=str(step), after_s=after)
+
+
+@dataclass
+class AppliedFault:
+    """What a run did with one entry of its schedule (``report.json``'s ``fault_schedule``).
+
+    Attributes:
+        index: the entry's index in the mission file's ``faults`` list.
+        description: :meth:`ScheduledFault.describe`.
+        changes: parameter -> value sent to ``/faults``.
+        due_s: s (sim) at which it was due; None when it never came due (its step never
+            started, or the mission ended first).
+        applied_s: s (sim) when the ``/faults`` server had accepted it; None when not applied.
+        error: why the server refused it ("" when it did not).
+    """
+
+    index: int
+    description: str
+    changes: dict[str, Any]
+    due_s: float | None = None
+    applied_s: float | None = None
+    error: str = ""
+
+    @property
+    def applied(self) -> bool:
+        """True when the server accepted the change."""
+        return self.applied_s is not None and not self.error
+
+    def to_json(self) -> dict[str, Any]:
+        """One entry of ``report.json``'s ``fault_schedule``."""
+        return {
+            "index": self.index,
+            "description": self.description,
+            "changes": dict(self.changes),
+            "due_s": self.due_s,
+            "applied_s": self.applied_s,
+            "error": self.error,
+        }
+
+
+class ScheduleTimer:
+    """Which entries of a schedule are due, from the simulation time and the steps' starts.
+
+    Each entry comes due once: :meth:`due` hands it out at the first time it is called with a
+    time at or after the entry's due time, in order of due time (then of the file).
+
+    Args:
+        schedule: the mission's entries, in the file's order.
+    """
+
+    def __init__(self, schedule: Iterable[ScheduledFault]) -> None:
+        self.schedule = tuple(schedule)
+        self._starts: dict[str, float] = {}
+        self._handed: set[int] = set()
+
+    def step_started(self, step: str, start_s: float) -> None:
+        """Note the start (s, sim) of ``step``; a step run twice keeps its first start."""
+        self._starts.setdefault(step, start_s)
+
+    def due(self, now_s: float) -> list[tuple[int, ScheduledFault, float]]:
+        """(index, entry, due s) of the entries due at or before ``now_s`` (s, sim) not handed
+        out yet, earliest first; they are not handed out again."""
+        ready = []
+        for index, entry in enumerate(self.schedule):
+            due_s = entry.due_s(self._starts)
+            if index not in self._handed and due_s is not None and due_s <= now_s:
+                ready.append((due_s, index, entry))
+        ready.sort(key=lambda item: (item[0], item[1]))
+        self._handed.update(index for _, index, _ in ready)
+        return [(index, entry, due_s) for due_s, index, entry in ready]
+
+    def never_due(self) -> list[AppliedFault]:
+        """The entries not handed out (the run ended first), as not applied."""
+        return [
+            AppliedFault(index, entry.describe(), dict(entry.changes))
+            for index, entry in enumerate(self.schedule)
+            if index not in self._handed
+        ]

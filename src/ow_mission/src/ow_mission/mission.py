@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from ow_mission.fault_schedule import AppliedFault
 from ow_mission.mission_config import MissionConfig
 from ow_mission.node_config import stack_parameters
 
@@ -101,6 +102,8 @@ class MissionReport:
     peak_memory_mb: float = 0.0
     ground_z: float | None = None
     error: str = ""
+    #: What became of each entry of the mission's fault schedule.
+    fault_schedule: list[AppliedFault] = field(default_factory=list)
 
     @property
     def success(self) -> bool:
@@ -155,6 +158,7 @@ class MissionReport:
             "ground_z": self.ground_z,
             "config": {k: v for k, v in asdict(self.config).items()},
             "steps": [{**asdict(s), "sim_time_s": s.sim_time_s} for s in self.steps],
+            "fault_schedule": [f.to_json() for f in self.fault_schedule],
         }
 
 

@@ -22,6 +22,7 @@ from std_srvs.srv import Trigger
 import ow_msgs.srv
 from ow_mission.action_client_node import ActionStepClient
 from ow_mission.errors import ConfigError
+from ow_mission.fault_schedule_node import FaultScheduleRunner
 from ow_mission.mission import (
     STEPS,
     MissionReport,
@@ -65,6 +66,7 @@ class MissionRunner:
         self._joint_stamp = 0.0
         self._lock = threading.Lock()
         self._actions = ActionStepClient(config.dig) if config.interface == "actions" else None
+        self._faults: FaultScheduleRunner | None = None
 
     # ------------------------------------------------------------------------- ROS callbacks
     def _on_clock(self, msg: Any) -> None:
@@ -110,6 +112,8 @@ class MissionRunner:
                     nodes = self._start(stack)
                     self._run_steps()
                 finally:
+                    if self._faults is not None:
+                        self.report.fault_schedule = self._faults.results()
                     self.report.peak_memory_mb = peak_memory_mb(node.proc.pid for node in nodes)
                     self.report.sim_time_s = self._clock
                     stack.shutdown()  # the recorder closes its bag on SIGINT
@@ -132,6 +136,8 @@ class MissionRunner:
             "arm_services": (tuple(s.service.format(dig=self.config.dig) for s in STEPS), ()),
             "viz": ((), ("/robot_description",)),
             "telemetry": ((), ("/arm_joint_positions",)),
+            "faults": (("/faults/set_parameters",), ("/faults/parameter_updates",)),
+            "detector": ((), ("/system_faults_status",)),
         }
         nodes = [
             stack.start_node(n.package, n.executable, params=params[n.executable], wait=False)
@@ -142,6 +148,9 @@ class MissionRunner:
         rospy.Subscriber("/clock", Clock, self._on_clock, queue_size=10)
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=10)
         rospy.Subscriber("/power", Power, self._on_power, queue_size=1000)
+        # Faults due at t = 0 are in place before the clock starts.
+        self._faults = FaultScheduleRunner(self.config.faults)
+        self._faults.poll(self._clock)
         # The sim node is ready (it offers /sim/resume): start its clock.
         error = self._sim_clock("resume")
         if error is not None:
@@ -165,6 +174,8 @@ class MissionRunner:
             # The simulation runs only during the steps: what the mission does in between
             # (energies, renders) neither adds sim time nor competes with it for the CPU.
             result.sim_start_s = self._clock
+            if self._faults is not None:  # faults due at the step's start, before it runs
+                self._faults.step_started(step.name, result.sim_start_s)
             self._sim_clock("resume", between_steps=True)
             wall0 = time.monotonic()
             try:

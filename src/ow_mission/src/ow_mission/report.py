@@ -4,7 +4,8 @@
 them) and its ``bags/``, and writes: ``power.png`` (power with the steps' signed and
 absolute-value mechanical energies), ``trench_profile.png`` (terrain before and after along and
 across the trench, with the requested depths), ``guarded_move.png`` (the ground detector, the
-paper's Figure 11), stills in ``renders/`` and ``replay.gif`` (the whole mission, animated), then
+paper's Figure 11), stills in ``renders/`` and ``replay.gif`` (the whole mission, animated),
+``battery.png`` and the faults section (:mod:`ow_mission.fault_report`), then
 ``report.md`` linking each figure that exists, and ``report.json`` with the energies from the bags
 and the figures' file names. ``python -m ow_mission.report RUN_DIR`` rebuilds them for a run.
 """
@@ -271,6 +272,34 @@ def replay_figure(
     return None
 
 
+def faults_section(
+    run_dir: Path, document: dict[str, Any], bags: Sequence[Path], figures: Figures
+) -> str | None:
+    """``document['faults']`` (:func:`ow_mission.fault_report.fault_summary`) and
+    ``battery.png``; a note when the bags have no battery data (the section is still made)."""
+    from ow_mission.fault_report import (
+        RUL_TOPIC,
+        SOC_TOPIC,
+        FaultRecording,
+        fault_summary,
+        plot_battery,
+        read_fault_recording,
+    )
+
+    recording = read_fault_recording(bags) if bags else FaultRecording()
+    document["faults"] = fault_summary(document, recording)
+    if not recording.soc and not recording.rul:
+        return f"no {SOC_TOPIC} or {RUL_TOPIC} in the bags: no battery figure."
+    plot_battery(recording, document["faults"], step_windows(document), run_dir / "battery.png")
+    figures.files["battery"] = "battery.png"
+    figures.captions["battery"] = (
+        f"The battery over the mission from the bags: state of charge ({SOC_TOPIC}) and "
+        f"remaining useful life ({RUL_TOPIC}, ProgPy's prediction), each step shaded; red "
+        "dashed: a scheduled fault applied, orange dotted: a fault bit first set."
+    )
+    return None
+
+
 def write_run_report(
     run_dir: Path, document: dict[str, Any], renders: bool = True
 ) -> dict[str, Any]:
@@ -312,6 +341,7 @@ def write_run_report(
                 makers += [("stills", still_figures), ("replay", replay_figure)]
             for role, maker in makers:
                 _attempt(figures, role, functools.partial(maker, run_dir, document, rec, figures))
+    _attempt(figures, "battery", lambda: faults_section(run_dir, document, bags, figures))
     document["figures"] = dict(figures.files)
     document["figure_notes"] = dict(figures.notes)
     document["report_seconds"] = time.monotonic() - wall0
@@ -390,6 +420,7 @@ def markdown(run_dir: Path, document: Mapping[str, Any], figures: Figures) -> st
         "with P0* adds the auxiliary power. *Peak mech.* is the peak of sum |tau*omega|, "
         "*peak total* that of the total power with P0.",
         "",
+        *_faults_lines(document),
         "## Figures",
         "",
     ]
@@ -405,6 +436,12 @@ def markdown(run_dir: Path, document: Mapping[str, Any], figures: Figures) -> st
         "from the bags with `python -m ow_mission.report <run dir>`.",
     ]
     return "\n".join(lines) + "\n"
+
+
+def _faults_lines(document: Mapping[str, Any]) -> list[str]:
+    from ow_mission.fault_report import markdown_lines
+
+    return markdown_lines(document["faults"]) if "faults" in document else []
 
 
 def image_links(markdown_text: str) -> list[str]:
