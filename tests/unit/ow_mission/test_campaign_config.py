@@ -152,8 +152,11 @@ def test_resume_runs_only_missing_missions(tmp_path):
     done = read_results(tmp_path)
     assert missing(done, range(4)) == [0, 3]  # a failed mission has its result: done
     assert missing(done, [2, 3]) == [3]
-    append_result(tmp_path, {"index": 0, "success": True})
+    # A mission that wrote no report (crashed, timed out, stopped) has no result: run again.
+    append_result(tmp_path, {"index": 0, "success": False, "crashed": True})
     append_result(tmp_path, {"index": 3, "success": True})
+    assert missing(read_results(tmp_path), range(4)) == [0]
+    append_result(tmp_path, {"index": 0, "success": True})
     assert missing(read_results(tmp_path), range(4)) == []
 
 

@@ -36,6 +36,10 @@ from ow_mission.campaign import (
 from ow_mission.errors import ConfigError
 
 RESULTS = "results.jsonl"
+#: s of wall time an interrupted campaign waits for its Ray tasks to stop their missions.
+STOP_WAIT_S = 30.0
+#: A running mission's pid, in its directory (gone once it has stopped).
+PID_FILE = "mission.pid"
 _RUNNING: set[subprocess.Popen[bytes]] = set()
 _RUNNING_LOCK = threading.Lock()
 
@@ -59,8 +63,10 @@ def read_results(directory: Path) -> dict[int, dict[str, Any]]:
 
 
 def missing(done: Mapping[int, Any], wanted: Iterable[int]) -> list[int]:
-    """The missions of ``wanted`` without a result: what running the campaign again runs."""
-    return [k for k in wanted if k not in done]
+    """The missions of ``wanted`` without a result: what running the campaign again runs. A
+    mission that failed has a result; one that crashed, timed out or was stopped before writing
+    its report (``crashed``) has none."""
+    return [k for k in wanted if k not in done or done[k].get("crashed")]
 
 
 def append_result(directory: Path, record: dict[str, Any]) -> None:
@@ -141,9 +147,12 @@ def run_mission(task: dict[str, Any]) -> dict[str, Any]:
             stdout=log,
             stderr=subprocess.STDOUT,
             start_new_session=True,
+            preexec_fn=_default_signals,
         )
         with _RUNNING_LOCK:
             _RUNNING.add(proc)
+        pid_file = path.parent / PID_FILE
+        pid_file.write_text(f"{proc.pid}\n")
         try:
             record["exit_code"] = proc.wait(timeout=float(task["timeout_s"]))
         except subprocess.TimeoutExpired:
@@ -151,16 +160,26 @@ def run_mission(task: dict[str, Any]) -> dict[str, Any]:
             record["error"] = f"no result within timeout_s = {task['timeout_s']:g} s (wall)"
         finally:
             stop(proc)
+            pid_file.unlink(missing_ok=True)
     record["wall_time_s"] = time.monotonic() - started
     runs = [
         p for p in path.parent.iterdir() if p.name not in before and (p / "report.json").exists()
     ]
     if not runs:
         record.setdefault("error", f"the mission wrote no report.json; see {path.parent}")
+        record["crashed"] = True
         return record
     record["run_dir"] = str(runs[-1])
     record.update(summarise_run(runs[-1]))
     return record
+
+
+def _default_signals() -> None:
+    """In the mission's process before it starts: no blocked or ignored stop signals (a Ray
+    worker blocks some, and a mask or an ignored signal is inherited), so SIGTERM stops it."""
+    signal.pthread_sigmask(signal.SIG_SETMASK, [])
+    for number in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(number, signal.SIG_DFL)
 
 
 def stop(proc: subprocess.Popen[bytes]) -> None:
@@ -302,6 +321,12 @@ def run_ray(ray: Any, tasks: Sequence[dict[str, Any]], cpus: float, sink: Sink) 
         for ref in pending:
             with contextlib.suppress(Exception):
                 ray.cancel(ref)
+        # Each cancelled task stops its mission's stack (its pid file goes) before Ray's
+        # workers go away: a worker killed first would leave the stack's nodes running.
+        pid_files = [Path(t["file"]).parent / PID_FILE for t in tasks]
+        deadline = time.monotonic() + STOP_WAIT_S
+        while any(p.exists() for p in pid_files) and time.monotonic() < deadline:
+            time.sleep(0.2)
         raise
 
 
@@ -400,6 +425,8 @@ def main(argv: list[str] | None = None) -> int:
         print(USAGE)
         return 0 if args else 2
     only: list[int] | None = None
+    # A job killed (SIGTERM) stops its running missions as Ctrl-C does.
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:
         if len(args) == 3 and args[1] == "--missions":
             selection = args[2]

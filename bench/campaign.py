@@ -1,0 +1,66 @@
+"""Campaign throughput (issue 16): missions per hour on this machine, local engine and Ray.
+
+Runs ``rosrun ow_mission campaign`` as a user would, on a campaign of N missions (default 4) of
+the default mission without renders (trench location randomized within reach), with 2 workers:
+once on the local engine, once on a local Ray instance (2 CPUs). Prints one JSON line per metric.
+
+    source env.sh && python bench/campaign.py [missions]
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import yaml
+
+
+def run(engine: str, missions: int, tmp: Path) -> list[dict[str, object]]:
+    path = tmp / f"{engine}.yaml"
+    campaign = {
+        "name": f"bench {engine}",
+        "seed": 16,
+        "missions": missions,
+        "mission": {"renders": False},
+        "randomize": {"x": [1.55, 1.75], "y": [-0.1, 0.1]},
+        "engine": engine,
+        "workers": 2,
+        "directory": str(tmp / engine),
+    }
+    path.write_text(yaml.safe_dump(campaign))
+    started = time.monotonic()
+    command = ["rosrun", "ow_mission", "campaign", str(path)]
+    proc = subprocess.run(command, capture_output=True, text=True, check=False)
+    wall = time.monotonic() - started
+    report_path = tmp / engine / "report.json"
+    if not report_path.exists():
+        print(proc.stdout[-2000:], proc.stderr[-2000:], file=sys.stderr)
+        return [{"metric": "error", "value": f"no report (exit {proc.returncode})"}]
+    report = json.loads(report_path.read_text())
+    mission_wall = report["wall_time_s"].get("mean", 0.0)
+    return [
+        {"metric": "missions_per_hour", "value": round(missions / wall * 3600, 1), "unit": "1/h"},
+        {"metric": "campaign_wall_time_s", "value": round(wall, 1), "unit": "s"},
+        {"metric": "mission_wall_time_mean_s", "value": round(mission_wall, 1), "unit": "s"},
+        {"metric": "missions_succeeded", "value": report["missions_succeeded"], "unit": ""},
+    ]
+
+
+def main() -> int:
+    missions = int(sys.argv[1]) if len(sys.argv) > 1 else 4
+    ok = True
+    for engine in ("local", "ray"):
+        with tempfile.TemporaryDirectory(prefix=f"ow_bench_campaign_{engine}_") as tmp:
+            for line in run(engine, missions, Path(tmp)):
+                common = {"bench": "campaign", "engine": engine, "workers": 2}
+                print(json.dumps({**common, "missions": missions, **line}), flush=True)
+                ok = ok and line["metric"] != "error"
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

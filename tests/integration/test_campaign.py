@@ -1,0 +1,151 @@
+"""Campaigns end to end: ``rosrun ow_mission campaign`` with real missions (each its own private
+master and stack) on the local engine, resumed, and on a local Ray instance.
+
+The missions are small (flat ground, no terrain forces, no renders, shallow short trench, faster
+joint accelerations): the campaign machinery is under test, not the digging.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import pytest
+import yaml
+
+from ow_lander.description import ARM_JOINTS
+
+TINY_MISSION = {
+    "terrain": "flat:-0.155",
+    "trench_depth": 0.02,
+    "bottom_grind_depth": 0.01,
+    "trench_length": 0.1,
+    "dig_length": 0.05,
+    "terrain_forces": "none",
+    "renders": False,
+    "node_params": {
+        "arm_services": {
+            "timing": {
+                "dig_velocity_scale": 1.0,
+                "acceleration_limits": dict.fromkeys(ARM_JOINTS, 1.0),
+            }
+        }
+    },
+}
+
+
+def campaign(tmp: Path, name: str, **keys) -> Path:
+    (tmp / "tiny.yaml").write_text(yaml.safe_dump(TINY_MISSION))
+    path = tmp / f"{name}.yaml"
+    raw = {
+        "name": name,
+        "seed": 16,
+        "base": "tiny.yaml",
+        "randomize": {"x": [1.6, 1.7], "y": [-0.05, 0.05]},
+        "workers": 2,
+        "timeout_s": 600,
+        **keys,
+    }
+    path.write_text(yaml.safe_dump(raw))
+    return path
+
+
+def rosrun_campaign(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    run = subprocess.run(
+        ["rosrun", "ow_mission", "campaign", *args],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=900,
+        check=False,
+    )
+    assert run.returncode in (0, 1), run.stdout[-3000:] + run.stderr[-3000:]
+    return run
+
+
+def results(directory: Path) -> list[dict]:
+    return [json.loads(line) for line in (directory / "results.jsonl").read_text().splitlines()]
+
+
+@pytest.fixture(scope="module")
+def local(tmp_path_factory):
+    """A 3-mission campaign on the local engine: missions 0 and 1 first, then the campaign
+    directory alone resumes it (mission 2 only)."""
+    tmp = tmp_path_factory.mktemp("campaign_local")
+    path = campaign(tmp, "local", missions=3)
+    first = rosrun_campaign(str(path), "--missions", "0-1", cwd=tmp)
+    directory = tmp / "campaigns" / "local"
+    second = rosrun_campaign(str(directory), cwd=tmp)
+    return directory, first.stdout, second.stdout
+
+
+@pytest.fixture(scope="module")
+def on_ray(tmp_path_factory):
+    """A 2-mission campaign on a local Ray instance (2 CPUs)."""
+    pytest.importorskip("ray")
+    tmp = tmp_path_factory.mktemp("campaign_ray")
+    path = campaign(tmp, "ray", missions=2, engine="ray", address="local", seed=17)
+    run = rosrun_campaign(str(path), cwd=tmp)
+    return tmp / "campaigns" / "ray", run.stdout
+
+
+def test_a_resumed_campaign_runs_only_what_is_missing(local):
+    directory, first, second = local
+    assert "0 of 3 missions done, 2 to run (local engine)" in first
+    assert "2 of 3 missions done, 1 to run (local engine)" in second
+    assert "mission 002:" in second and "mission 000:" not in second
+    assert [r["index"] for r in results(directory)][2] == 2
+    assert sorted(r["index"] for r in results(directory)) == [0, 1, 2]
+    for k in range(3):  # each mission ran once: one run directory each
+        runs = [p for p in (directory / "missions" / f"00{k}").iterdir() if p.is_dir()]
+        assert len(runs) == 1, runs
+
+
+def test_local_campaign_report(local):
+    directory, _, _ = local
+    report = json.loads((directory / "report.json").read_text())
+    assert report["missions_done"] == 3
+    assert report["missions_succeeded"] + report["missions_failed"] == 3
+    done = [r for r in results(directory) if r["success"]]
+    ops = {op["step"]: op for op in report["operations"]}
+    if done:
+        assert ops["stow"]["n"] == len(done)
+        stow = [s for r in done for s in r["steps"] if s["step"] == "stow"]
+        # The stowed pose is the same every time: the tool ends within 1 cm of its mean.
+        for s in stow:
+            for p, m in zip(s["final_tool_position"], ops["stow"]["position_mean"], strict=True):
+                assert abs(p - m) < 0.01
+        # Flat ground at -0.155 m: the guarded move finds it within 2 cm.
+        assert report["ground_error_m"]["n"] == len(done)
+        assert all(abs(e) < 0.02 for e in report["ground_error_m"]["values"])
+    for failed in report["failed"]:
+        assert failed["command"].startswith("rosrun ow_mission mission ")
+        assert Path(failed["command"].split()[-1]).is_file()
+    text = (directory / "report.md").read_text()
+    assert "3 of 3 missions done" in text
+    assert "| stow |" in text or not done
+    for figure in report["figures"]:
+        assert (directory / figure).stat().st_size > 1000
+
+
+def test_each_mission_file_replays_alone(local):
+    directory, _, _ = local
+    for record in results(directory):
+        mission = yaml.safe_load(Path(record["mission_file"]).read_text())
+        assert mission["seed"] == record["seed"]
+        assert mission["output_dir"] == str(Path(record["mission_file"]).parent)
+        assert record["command"] == f"rosrun ow_mission mission {record['mission_file']}"
+
+
+def test_ray_campaign_report(on_ray):
+    directory, stdout = on_ray
+    assert "0 of 2 missions done, 2 to run (ray engine)" in stdout
+    report = json.loads((directory / "report.json").read_text())
+    assert report["missions_done"] == 2
+    records = results(directory)
+    assert sorted(r["index"] for r in records) == [0, 1]
+    for record in records:
+        assert Path(record["run_dir"], "report.json").is_file(), record
+        assert len(record["steps"]) >= 1
+    assert (directory / "report.md").read_text().startswith("# Campaign: ray")
