@@ -10,6 +10,7 @@ once on the local engine, once on a local Ray instance (2 CPUs). Prints one JSON
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -36,6 +37,7 @@ def run(engine: str, missions: int, tmp: Path) -> list[dict[str, object]]:
     command = ["rosrun", "ow_mission", "campaign", str(path)]
     proc = subprocess.run(command, capture_output=True, text=True, check=False)
     wall = time.monotonic() - started
+    load = os.getloadavg()[0]
     report_path = tmp / engine / "report.json"
     if not report_path.exists():
         print(proc.stdout[-2000:], proc.stderr[-2000:], file=sys.stderr)
@@ -47,6 +49,8 @@ def run(engine: str, missions: int, tmp: Path) -> list[dict[str, object]]:
         {"metric": "campaign_wall_time_s", "value": round(wall, 1), "unit": "s"},
         {"metric": "mission_wall_time_mean_s", "value": round(mission_wall, 1), "unit": "s"},
         {"metric": "missions_succeeded", "value": report["missions_succeeded"], "unit": ""},
+        # The machine is shared: its load at the end says how comparable the figures are.
+        {"metric": "load_average_1min_at_end", "value": round(load, 2), "unit": ""},
     ]
 
 

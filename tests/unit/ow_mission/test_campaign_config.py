@@ -115,6 +115,50 @@ def test_choices_follow_their_probabilities(tmp_path):
     assert {sample_mission(never, k)["dig"] for k in range(20)} == {"circular"}
 
 
+FAULT = {"at_step": "grind", "set": {"shou_pitch_joint_locked_failure": True}}
+
+
+def test_fault_schedules_are_drawn_with_their_probabilities(tmp_path):
+    raw = {"seed": 5, "missions": 300, "randomize": {"x": [1.5, 1.8]}}
+    faults = [
+        {"probability": 0.3, **FAULT, "after_s": [1.0, 5.0]},
+        {"probability": 0.0, "at_time_s": 10.0, "set": {"high_power_draw": 50.0}},
+    ]
+    c = config(tmp_path, **raw, faults=faults)
+    missions = [sample_mission(c, k) for k in range(300)]
+    got = [m["faults"] for m in missions]
+    assert 0.22 < sum(1 for f in got if f) / 300 < 0.38
+    assert all(len(f) <= 1 and (not f or f[0]["at_step"] == "grind") for f in got)
+    delays = [f[0]["after_s"] for f in got if f]
+    assert min(delays) < 1.5 and max(delays) > 4.5
+    # The randomized keys are drawn first: adding faults leaves them as they were.
+    plain = config(tmp_path, **raw)
+    assert [m["x"] for m in missions[:20]] == [sample_mission(plain, k)["x"] for k in range(20)]
+    assert len(MissionConfig.from_dict(next(m for m in missions if m["faults"])).faults) == 1
+
+
+@pytest.mark.parametrize(
+    ("fault", "match"),
+    [
+        ({"probability": 1.5, **FAULT}, r"campaign/faults\[0\]/probability = 1.5 is outside"),
+        ({"probability": -0.1, **FAULT}, r"campaign/faults\[0\]/probability = -0.1 is outside"),
+        (FAULT, r"campaign/faults\[0\] must be a mapping with a probability"),
+        (
+            {"probability": 0.5, "at_step": "grnd", "set": FAULT["set"]},
+            r"campaign/faults\[0\]: mission/faults\[0\]/at_step.*did you mean 'grind'",
+        ),
+        (
+            {"probability": 0.5, "at_step": "grind", "set": {"shou_pitch_joint_locked": True}},
+            r"campaign/faults\[0\]: mission/faults\[0\]/set",
+        ),
+        ({"probability": 0.5, **FAULT, "after_s": [5, 1]}, r"after_s = \[5, 1\] must be"),
+    ],
+)
+def test_bad_fault_schedules_name_the_entry(tmp_path, fault, match):
+    with pytest.raises(ConfigError, match=match):
+        config(tmp_path, faults=[fault])
+
+
 def test_labels_and_selection():
     assert mission_label(7, 20) == "007"
     assert mission_label(7, 20000) == "00007"

@@ -76,6 +76,30 @@ class Randomized:
 
 
 @dataclass(frozen=True)
+class RandomFault:
+    """One candidate entry of a mission's fault schedule (``ow_mission.fault_schedule``).
+
+    Attributes:
+        probability: chance that a mission gets it, in [0, 1].
+        entry: the schedule entry (``at_step``/``after_s`` or ``at_time_s``, ``set``).
+        ranges: entry time keys drawn uniformly from [low, high] (``after_s``, ``at_time_s``).
+    """
+
+    probability: float
+    entry: dict[str, Any]
+    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
+
+    def draw(self, rng: np.random.Generator) -> dict[str, Any] | None:
+        """The entry with its times drawn, or None when this mission does not get it (the
+        same number of draws either way, so later draws do not depend on the outcome)."""
+        included = rng.random() < self.probability
+        times = {
+            k: round(float(rng.uniform(lo, hi)), DIGITS) for k, (lo, hi) in self.ranges.items()
+        }
+        return {**self.entry, **times} if included else None
+
+
+@dataclass(frozen=True)
 class CampaignConfig:
     """A campaign file (see ``docs/campaigns.md``).
 
@@ -94,6 +118,7 @@ class CampaignConfig:
         cpus_per_mission: Ray CPUs one mission reserves.
         timeout_s: s of wall time one mission may take before it is stopped and failed.
         base_mission: the base file's mapping with the overrides on top.
+        faults: candidate fault-schedule entries, each added to a mission with its probability.
     """
 
     name: str = "campaign"
@@ -109,6 +134,7 @@ class CampaignConfig:
     cpus_per_mission: float = 1.0
     timeout_s: float = 1800.0
     base_mission: dict[str, Any] = field(default_factory=dict)
+    faults: tuple[RandomFault, ...] = ()
 
     @classmethod
     def from_dict(
@@ -151,6 +177,7 @@ class CampaignConfig:
             base=base,
             mission=dict(overrides),
             randomize=_randomized(p.section("randomize"), checked_on),
+            faults=_random_faults(p.raw("faults", []), checked_on, p),
             directory=directory.resolve(),
             engine=p.string("engine", d.engine, choices=ENGINES),
             workers=workers,
@@ -211,7 +238,13 @@ def sample_mission(config: CampaignConfig, k: int) -> dict[str, Any]:
         msg = f"mission {k} is outside [0, {config.missions - 1}] (campaign/missions)"
         raise ConfigError(msg)
     rng = np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(k,)))
-    drawn = {r.key: r.draw(rng) for r in config.randomize}
+    drawn: dict[str, Any] = {r.key: r.draw(rng) for r in config.randomize}
+    # Drawn after the keys: a campaign without faults samples the same missions.
+    chosen = [f.draw(rng) for f in config.faults]
+    if config.faults:
+        drawn["faults"] = list(config.base_mission.get("faults") or []) + [
+            entry for entry in chosen if entry is not None
+        ]
     mission = {
         **config.base_mission,
         **drawn,
@@ -351,6 +384,40 @@ def _choices(name: str, key: str, spec: Any, p: Params) -> Randomized | None:
         p.problem(f"{name}: the probabilities sum to {total:g}, not 1")
         return None
     return Randomized(key, choices=tuple(spec), probabilities=tuple(probabilities))
+
+
+def _random_faults(raw: Any, base: Mapping[str, Any], p: Params) -> tuple[RandomFault, ...]:
+    """The ``faults`` list: each entry a mission fault-schedule entry plus its ``probability``;
+    ``after_s`` / ``at_time_s`` may be ranges. Each is checked by the mission's own schedule
+    validation with both ends of its ranges."""
+    if not isinstance(raw, list):
+        p.problem(f"campaign/faults must be a list of schedule entries, got {raw!r}")
+        return ()
+    found = []
+    for i, item in enumerate(raw):
+        name = f"campaign/faults[{i}]"
+        if not isinstance(item, Mapping) or "probability" not in item:
+            p.problem(f"{name} must be a mapping with a probability and a schedule entry")
+            continue
+        before = len(p.problems)
+        probability = p.check_number(
+            item["probability"], f"{name}/probability", 0.0, low=0.0, high=1.0
+        )
+        if len(p.problems) > before:
+            continue
+        entry = {k: v for k, v in item.items() if k != "probability"}
+        ranges = {}
+        for key in ("after_s", "at_time_s"):
+            spec = entry.get(key)
+            if isinstance(spec, list | tuple):
+                window = _range(f"{name}/{key}", key, spec, p)
+                if window is None or window.low is None or window.high is None:
+                    continue
+                ranges[key] = (window.low, window.high)
+        ends = [{**entry, **{k: v[end] for k, v in ranges.items()}} for end in (0, 1)]
+        if all(_check_mission({**base, "faults": [e]}, name, p) for e in ends):
+            found.append(RandomFault(probability, ends[0], ranges))
+    return tuple(found)
 
 
 def _check_address(address: str, p: Params) -> None:

@@ -196,8 +196,15 @@ def summarise(records: Mapping[int, Mapping[str, Any]], missions: int) -> dict[s
             [r["ground_error_m"] for r in ordered if r.get("ground_error_m") is not None]
         ),
         "failed": failed,
+        "with_faults": _rate([r for r in ordered if r.get("faults")]),
+        "without_faults": _rate([r for r in ordered if not r.get("faults")]),
         "wall_time_s": distribution([r["wall_time_s"] for r in ordered if "wall_time_s" in r]),
     }
+
+
+def _rate(records: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    succeeded = sum(1 for r in records if r.get("success"))
+    return {"n": len(records), "succeeded": succeeded}
 
 
 def markdown(name: str, summary: Mapping[str, Any], figures: Sequence[str]) -> str:
@@ -208,6 +215,9 @@ def markdown(name: str, summary: Mapping[str, Any], figures: Sequence[str]) -> s
         f"{summary['missions_done']} of {summary['missions']} missions done; "
         f"{summary['missions_succeeded']} succeeded, {summary['missions_failed']} failed "
         f"(success rate {100 * summary['success_rate']:.1f} %).",
+        f"With a fault schedule: {summary['with_faults']['succeeded']} of "
+        f"{summary['with_faults']['n']} succeeded; without: "
+        f"{summary['without_faults']['succeeded']} of {summary['without_faults']['n']}.",
         "",
         "## Operations (OceanWATERS' statistics: mean, std, n over the steps that succeeded)",
         "",

@@ -25,6 +25,8 @@ from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from ow_mission.campaign import (
     USAGE,
     CampaignConfig,
@@ -138,6 +140,7 @@ def run_mission(task: dict[str, Any]) -> dict[str, Any]:
         "command": replay_command(path),
         "host": socket.gethostname(),
         "success": False,
+        "faults": len((yaml.safe_load(task["text"]) or {}).get("faults") or []),
     }
     started = time.monotonic()
     with (path.parent / "mission.log").open("ab") as log:
@@ -452,8 +455,6 @@ def main(argv: list[str] | None = None) -> int:
 def _pinned(raw_text: str, config: CampaignConfig) -> str:
     """The campaign file as the campaign directory keeps it: its text, with the directory and
     the base mission as absolute paths (so the directory alone resumes it)."""
-    import yaml
-
     raw = yaml.safe_load(raw_text) or {}
     raw["directory"] = str(config.directory)
     if "base" in raw:
