@@ -317,16 +317,8 @@ class LanderModel:
         terrain_margin: float = 0.0,
         stop_at_first: bool = False,
     ) -> CollisionReport:
-        """Check ``q`` against self-collision, the lander body, the dock and the terrain.
-
-        Args:
-            q: (9,) rad configuration.
-            terrain: height map to check against, or None for no terrain.
-            terrain_links: links that must stay above the terrain (e.g. leave out the scoop while
-                it digs).
-            terrain_margin: m, clearance required above the terrain.
-            stop_at_first: return at the first contact found (faster, incomplete report).
-        """
+        """The contacts of ``q`` (9,) rad: :meth:`CollisionChecker.report
+        <ow_lander.collision.CollisionChecker.report>` on this lander's model."""
         return self.collision.report(q, terrain, terrain_links, terrain_margin, stop_at_first)
 
     def in_collision(

@@ -126,23 +126,11 @@ class ArmPlanner:
         ctx: CheckContext,
         objective: str = "work",
     ) -> FloatArray:
-        """A collision-free joint-space path from ``start`` to ``goal`` (both (6,) rad).
-
-        The direct segment is kept when it is valid at the joint resolution; then two staged
-        straight moves (wrist first or shoulder first); then the same through the unstowed
-        pose (:meth:`plan_straight`); otherwise RRT*
-        (seeded, capped by iterations, time and a cost threshold) and a greedy shortcut; when
-        RRT* finds nothing within its caps, a seeded RRTConnect search for any valid path
-        (``connect_time_limit_s``), shortened the same way.
-
-        Args:
-            start: (6,) rad.
-            goal: (6,) rad.
-            ctx: what states are checked against.
-            objective: ``work`` (ours) or ``length`` (OMPL path length, for comparisons).
-
-        Returns:
-            (n, 6) rad waypoints from start to goal, n >= 2.
+        """A collision-free joint-space path, (n >= 2, 6) rad, from ``start`` to ``goal`` (both
+        (6,) rad) checked against ``ctx``: the direct segment when it is valid at the joint
+        resolution; then two staged straight moves (wrist first or shoulder first), also
+        through the unstowed pose (:meth:`plan_straight`); otherwise the sampled search of
+        :meth:`plan_sampled` (``objective`` ``work``, ours, or ``length``, OMPL's).
 
         Raises:
             PlanningError: invalid start or goal (with the reason), or no path found.

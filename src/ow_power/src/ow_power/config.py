@@ -74,17 +74,12 @@ class PowerConfig:
 
     @classmethod
     def from_dict(cls, params: Mapping[str, Any]) -> PowerConfig:
-        """Validate a parameter dict (missing keys take their defaults).
-
-        Every problem is collected and reported at once; a misspelt key gets the nearest known
-        key as a suggestion.
-
-        Args:
-            params: the node's private namespace (a section of :data:`CONFIG_FILE`).
+        """Validate the node's private namespace (a section of :data:`CONFIG_FILE`; missing keys
+        take their defaults), every problem reported at once (:class:`~ow_lander.params.Params`).
 
         Raises:
-            ConfigError: unknown keys, wrong types or values out of range; the message names
-                each key.
+            ConfigError: naming each unknown key (with the nearest known one), wrong type or
+                value out of range.
         """
         p = Params(params, "power", ConfigError)
         config = cls(
@@ -123,17 +118,12 @@ class RecorderConfig:
 
     @classmethod
     def from_dict(cls, params: Mapping[str, Any]) -> RecorderConfig:
-        """Validate a parameter dict (missing keys take their defaults).
-
-        Every problem is collected and reported at once; a misspelt key gets the nearest known
-        key as a suggestion.
-
-        Args:
-            params: the node's private namespace (a section of :data:`CONFIG_FILE`).
+        """Validate the node's private namespace (a section of :data:`CONFIG_FILE`; missing keys
+        take their defaults), every problem reported at once (:class:`~ow_lander.params.Params`).
 
         Raises:
-            ConfigError: unknown keys, wrong types or values out of range; the message names
-                each key.
+            ConfigError: naming each unknown key (with the nearest known one), wrong type or
+                value out of range.
         """
         p = Params(params, "record", ConfigError)
         prefix = p.string("prefix", cls.prefix)
@@ -212,17 +202,12 @@ class BatteryConfig:
 
     @classmethod
     def from_dict(cls, params: Mapping[str, Any]) -> BatteryConfig:
-        """Validate a parameter dict (missing keys take their defaults).
-
-        Every problem is collected and reported at once; a misspelt key gets the nearest known
-        key as a suggestion.
-
-        Args:
-            params: the node's private namespace (a section of :data:`CONFIG_FILE`).
+        """Validate the node's private namespace (a section of :data:`CONFIG_FILE`; missing keys
+        take their defaults), every problem reported at once (:class:`~ow_lander.params.Params`).
 
         Raises:
-            ConfigError: unknown keys, wrong types or values out of range; the message names
-                each key.
+            ConfigError: naming each unknown key (with the nearest known one), wrong type or
+                value out of range.
         """
         p = Params(params, "battery", ConfigError)
         cells = p.integer("cells_in_series", cls.cells_in_series, low=1, high=1000)
