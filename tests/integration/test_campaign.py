@@ -35,6 +35,9 @@ TINY_MISSION = {
 }
 
 
+LOCKED = {"shou_pitch_joint_locked_failure": True}
+
+
 def campaign(tmp: Path, name: str, **keys) -> Path:
     (tmp / "tiny.yaml").write_text(yaml.safe_dump(TINY_MISSION))
     path = tmp / f"{name}.yaml"
@@ -82,10 +85,12 @@ def local(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def on_ray(tmp_path_factory):
-    """A 2-mission campaign on a local Ray instance (2 CPUs)."""
+    """A 2-mission campaign on a local Ray instance (2 CPUs); with seed 22, mission 0 draws the
+    fault (a shoulder locked during the grind) and mission 1 does not."""
     pytest.importorskip("ray")
     tmp = tmp_path_factory.mktemp("campaign_ray")
-    path = campaign(tmp, "ray", missions=2, engine="ray", address="local", seed=17)
+    fault = {"probability": 0.5, "at_step": "grind", "after_s": 1.0, "set": LOCKED}
+    path = campaign(tmp, "ray", missions=2, engine="ray", address="local", seed=22, faults=[fault])
     run = rosrun_campaign(str(path), cwd=tmp)
     return tmp / "campaigns" / "ray", run.stdout
 
@@ -148,4 +153,12 @@ def test_ray_campaign_report(on_ray):
     for record in records:
         assert Path(record["run_dir"], "report.json").is_file(), record
         assert len(record["steps"]) >= 1
+        schedule = yaml.safe_load(Path(record["mission_file"]).read_text())["faults"]
+        assert len(schedule) == record["faults"] == (1 if record["index"] == 0 else 0)
+    assert report["with_faults"]["n"] == report["without_faults"]["n"] == 1
+    for failed in report["failed"]:
+        assert (
+            failed["command"]
+            == f"rosrun ow_mission mission {directory}/missions/00{failed['index']}/mission.yaml"
+        )
     assert (directory / "report.md").read_text().startswith("# Campaign: ray")
