@@ -395,9 +395,10 @@ def run_campaign(
         }
         for k in todo
     ]
-    progress = Progress(config.missions, len(results), len(todo), workers)
+    done = len(results) - len(missing(results, results))  # crashed ones are not done
+    progress = Progress(config.missions, done, len(todo), workers)
     print(
-        f"[campaign] {config.name}: {len(results)} of {config.missions} missions done, "
+        f"[campaign] {config.name}: {done} of {config.missions} missions done, "
         f"{len(todo)} to run ({config.engine} engine) in {config.directory}",
         flush=True,
     )
