@@ -219,7 +219,7 @@ class ArmMotions:
 
     def escape(self, q: FloatArray, terrain: HeightMap | None) -> FloatArray | None:
         """(2, 6) rad, a straight move out of a configuration in which the arm touches the
-        lander or itself, or None when it touches neither.
+        lander or itself, or None when it touches neither (or a joint is beyond its limits).
 
         The simulation has no arm-lander contacts, so a set-point beyond where the planner's
         model lets the arm go leaves the arm inside the lander's collision model (the shoulder
@@ -233,8 +233,8 @@ class ArmMotions:
         """
         arm = self.planner.arm(q)
         body = self.context(q, None)
-        if self.planner.is_valid(arm, body):
-            return None
+        if not self.planner.within_limits(arm) or self.planner.is_valid(arm, body):
+            return None  # beyond a joint limit is no contact: refused with its reason later
         resolution = self.planner.config.joint_resolution_rad
         goal = np.array([UNSTOWED[j] for j in ARM_JOINTS])
         states = densify(np.vstack([arm, goal]), resolution)
