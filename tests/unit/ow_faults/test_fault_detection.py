@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from ow_faults.detection import FaultDetector
+from ow_faults.detection import FT_TIMEOUT_S, FaultDetector
 from ow_faults.errors import FaultError
 from ow_faults.injection import LOCKABLE_JOINTS, FaultSet
 from owl_msgs.msg import ArmFaultsStatus as Arm
@@ -60,11 +60,11 @@ def test_no_force_data_from_the_injector_or_a_silent_sensor():
     detector.on_injected(FaultSet())
     detector.on_wrist(10.0)
     detector.on_joint_flags(*flags(), 10.02)
-    detector.on_joint_flags(*flags(), 10.5)
+    detector.on_joint_flags(*flags(), 10.0 + FT_TIMEOUT_S)
     assert detector.status.arm == 0
-    detector.on_joint_flags(*flags(), 10.53)  # over 0.5 s without a reading
+    detector.on_joint_flags(*flags(), 10.03 + FT_TIMEOUT_S)  # over the timeout without a reading
     assert detector.status.arm == Arm.NO_FORCE_DATA
-    detector.on_wrist(10.52)
+    detector.on_wrist(10.02 + FT_TIMEOUT_S)
     assert detector.status.arm == 0
 
 
