@@ -31,7 +31,7 @@ import pybullet as pb
 from ow_dem_bridge.api import TerrainForceModel
 from ow_dem_bridge.models import make_model
 from ow_faults.injection import FaultSet
-from ow_lander.description import TERRAIN_CONTACT_LINKS, URDF_PATH
+from ow_lander.description import ARM_JOINTS, TERRAIN_CONTACT_LINKS, URDF_PATH
 from ow_lander.terrain import HeightMap
 from ow_sim_bullet.bullet_terrain import BulletTerrain
 from ow_sim_bullet.carving import TerrainCarver, collision_surface_points
@@ -303,7 +303,9 @@ class BulletSim:
 
     def apply_faults(self, faults: FaultSet) -> tuple[frozenset[str], frozenset[str]]:
         """Lock the joints ``faults`` lock (releasing the others, each held where it is) and
-        fault the wrist sensor as it says (:mod:`ow_sim_bullet.faults`).
+        fault the wrist sensor as it says (:mod:`ow_sim_bullet.faults`). A newly locked arm
+        joint with ``arm_motion_continues_in_fault`` false stops the other arm joints where they
+        are (their trajectories cancelled) in this step.
 
         Returns:
             The joints newly locked and the joints released.
@@ -312,6 +314,12 @@ class BulletSim:
         self.controller.set_locked(faults.locked_joints, LOCK_DAMPER)
         for joint in released:
             self.controller.release(joint, float(self.sample.position[self.names.index(joint)]))
+        if locked & set(ARM_JOINTS) and not faults.arm_motion_continues_in_fault:
+            # OceanWATERS stops the arm on an arm execution error: here in the step the lock
+            # engages, whatever the detector's and the arm services' topics take to arrive.
+            for joint in set(ARM_JOINTS) - faults.locked_joints:
+                position = float(self.sample.position[self.names.index(joint)])
+                self.controller.set_setpoint(joint, position)
         self.wrist_faults.set(faults)
         return locked, released
 
