@@ -104,7 +104,9 @@ def test_lock_half_way_through_a_grind_stops_the_arm_and_fails_naming_the_joint(
             in_trench.set()
 
     grind.send_goal(owl.TaskGrindGoal(1.65, 0.0, 0.05, 0.4, 1.0, GROUND))
-    watch = rospy.Subscriber("/joint_states", JointState, on_joints, queue_size=1)
+    # rospy shares one queue per topic in a process, the last queue_size set wins: never 1 here,
+    # or other tests' /joint_states recorders in this process would keep 1 message in 4.
+    watch = rospy.Subscriber("/joint_states", JointState, on_joints, queue_size=100000)
     try:
         assert in_trench.wait(300), "the grinder never went into the ground"
         watch.unregister()

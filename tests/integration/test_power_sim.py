@@ -56,10 +56,15 @@ class Trace:
         self.joint_states: dict[int, JointState] = {}
         self.damping: dict[int, JointState] = {}
         self.power: dict[int, Power] = {}
+        # Every message: rospy shares one queue per topic in a process and the last queue_size
+        # set wins, so set a large one (None would keep whatever another test left).
         self._subs = [
-            rospy.Subscriber("/joint_states", JointState, self._store(self.joint_states)),
-            rospy.Subscriber("/sim/joint_damping", JointState, self._store(self.damping)),
-            rospy.Subscriber("/power", Power, self._store(self.power)),
+            rospy.Subscriber(topic, cls, self._store(store), queue_size=100000)
+            for topic, cls, store in (
+                ("/joint_states", JointState, self.joint_states),
+                ("/sim/joint_damping", JointState, self.damping),
+                ("/power", Power, self.power),
+            )
         ]
 
     def _store(self, into):
