@@ -4,7 +4,7 @@ ROOT := $(CURDIR)
 RUN := source $(ROOT)/env.sh &&
 PYTEST_ARGS ?=
 
-.PHONY: setup demo test unit integration lint bench shell dem-tables clean
+.PHONY: setup demo test test-ray unit integration lint bench shell dem-tables clean
 
 setup:
 	@scripts/setup.sh
@@ -14,6 +14,10 @@ demo: setup
 
 test: setup lint
 	@$(RUN) python -m pytest -n 2 --dist loadscope tests $(PYTEST_ARGS)
+
+# The campaign on a local Ray instance, which make test skips (too heavy beside the suite).
+test-ray: setup
+	@$(RUN) OW_RAY_TESTS=1 python -m pytest tests/integration/test_campaign.py $(PYTEST_ARGS)
 
 unit: setup
 	@$(RUN) python -m pytest -n 2 tests/unit $(PYTEST_ARGS)

@@ -8,6 +8,7 @@ joint accelerations): the campaign machinery is under test, not the digging.
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 from pathlib import Path
 
@@ -90,6 +91,10 @@ def on_ray(tmp_path_factory):
     """A 2-mission campaign on a local Ray instance (2 CPUs); with seed 22, mission 0 draws the
     fault (a shoulder locked during the grind) and mission 1 does not."""
     pytest.importorskip("ray")
+    if not os.environ.get("OW_RAY_TESTS"):
+        # A local Ray instance (raylet, GCS, workers) beside a mission stack and the rest of
+        # make test overloads 2 cores: other tests then time out connecting to services.
+        pytest.skip("Ray campaign test: set OW_RAY_TESTS=1 (make test-ray) to run it")
     tmp = tmp_path_factory.mktemp("campaign_ray")
     fault = {"probability": 0.5, "at_step": "grind", "after_s": 1.0, "set": LOCKED}
     path = campaign(tmp, "ray", missions=2, engine="ray", address="local", seed=22, faults=[fault])
