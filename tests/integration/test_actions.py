@@ -23,7 +23,7 @@ import owl_msgs.msg as owl
 from ow_lander.actions import quaternion_from_rotation
 from ow_lander.description import ARM_JOINTS, DEFAULT_GROUND_Z, SCOOP_TIP_FRAME, UNSTOWED
 from ow_lander.model import LanderModel
-from ow_mission.testing import set_terrain, wait_connected
+from ow_mission.testing import set_terrain, subscribe, wait_connected
 from ow_msgs.msg import GroundDetectorSignal
 from ow_msgs.srv import Unstow
 
@@ -36,7 +36,7 @@ class JointLog:
 
     def __init__(self) -> None:
         self.samples: list[tuple[float, np.ndarray]] = []
-        self.sub = rospy.Subscriber("/joint_states", JointState, self._on, queue_size=1000)
+        self.sub = subscribe("/joint_states", JointState, self._on)
 
     def _on(self, msg: JointState) -> None:
         values = dict(zip(msg.name, msg.position, strict=False))
@@ -94,11 +94,10 @@ def feedback_stamps(name: str) -> list[float]:
     /feedback topic, the header the server stamps on publishing)."""
     stamps: list[float] = []
     wait_connected(
-        rospy.Subscriber(
+        subscribe(
             f"/{name}/feedback",
             getattr(owl, f"{name}ActionFeedback"),
             lambda m: stamps.append(m.header.stamp.to_sec()),
-            queue_size=1000,
         ),
         timeout_s=30,
     )
@@ -205,7 +204,7 @@ def test_find_surface_on_flat_ground(stack, joints):
         distance=0.2, overdrive=0.05, force_threshold=10.0, torque_threshold=10.0,
     )  # fmt: skip
     detector = []
-    sub = rospy.Subscriber("/arm/ground_detector", GroundDetectorSignal, detector.append)
+    sub = subscribe("/arm/ground_detector", GroundDetectorSignal, detector.append)
     try:
         state, result, text = run("ArmFindSurface", goal)
     finally:
@@ -258,7 +257,7 @@ class Executing:
     def __init__(self, stack) -> None:
         self.receipts: list[Header] = []
         self.sub = wait_connected(
-            rospy.Subscriber("/sim/trajectory_received", Header, self.receipts.append)
+            subscribe("/sim/trajectory_received", Header, self.receipts.append)
         )
         self.stack = stack
 

@@ -26,7 +26,7 @@ from ow_lander.operations import DOCK_CENTRE, shoulder_yaw_for
 from ow_lander.planning import ArmPlanner, CheckContext
 from ow_lander.terrain import HeightMap
 from ow_lander.trajectory import read_csv
-from ow_mission.testing import set_terrain
+from ow_mission.testing import set_terrain, subscribe
 from ow_msgs.srv import (
     DeliverSample,
     DigCircular,
@@ -60,7 +60,7 @@ class JointRecorder:
         self.latest: np.ndarray | None = None
         self.speed = np.inf
         self.recording = False
-        self.sub = rospy.Subscriber("/joint_states", JointState, self._on, queue_size=1000)
+        self.sub = subscribe("/joint_states", JointState, self._on)
 
     def _on(self, msg: JointState) -> None:
         by_name = dict(zip(msg.name, msg.position, strict=True))

@@ -14,6 +14,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Header
 
+from ow_mission.testing import subscribe
 from ow_msgs.msg import Power
 from ow_power.config import BatteryConfig
 from owl_msgs.msg import BatteryRemainingUsefulLife, BatteryStateOfCharge, BatteryTemperature
@@ -37,7 +38,7 @@ class Collector:
 
     def __init__(self, topic, msg_type):
         self.messages = []
-        self.subscriber = rospy.Subscriber(topic, msg_type, self.messages.append, queue_size=100)
+        self.subscriber = subscribe(topic, msg_type, self.messages.append)
 
 
 @pytest.fixture(scope="module")

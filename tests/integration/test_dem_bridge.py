@@ -14,7 +14,7 @@ from ow_dem_bridge.api import ToolState
 from ow_dem_bridge.errors import ConfigError
 from ow_dem_bridge.remote_node import make_remote_model
 from ow_dem_bridge.table import load_table
-from ow_mission.testing import HarnessError
+from ow_mission.testing import HarnessError, subscribe
 
 HEADER = "tool,material,depth_m,progress_m,Fx_N,Fy_N,Fz_N,Tx_Nm,Ty_Nm,Tz_Nm"
 ROWS = [
@@ -49,12 +49,11 @@ class Collector:
     """Keeps the wrenches received on a topic."""
 
     def __init__(self, topic: str) -> None:
-        import rospy
         from geometry_msgs.msg import WrenchStamped
 
         self.messages: list[Any] = []
         self.event = threading.Event()
-        self.sub = rospy.Subscriber(topic, WrenchStamped, self._cb, queue_size=100)
+        self.sub = subscribe(topic, WrenchStamped, self._cb)
 
     def _cb(self, msg: Any) -> None:
         self.messages.append(msg)

@@ -28,6 +28,7 @@ from ow_dem_bridge.models import DEFAULT_TABLE_PATH
 from ow_dem_bridge.table import load_table
 from ow_lander.description import DEFAULT_GROUND_Z, URDF_PATH
 from ow_lander.model import LanderModel
+from ow_mission.testing import subscribe
 
 GROUND_Z = DEFAULT_GROUND_Z
 DIG = {"x": 1.6, "y": 0.0, "depth": 0.05, "length": 0.2, "ground_position": GROUND_Z}
@@ -63,7 +64,6 @@ def _record_dig(
 ) -> DigRecord:
     """Start a sim with ``terrain_forces`` (and rigid tool-terrain contact or not) and the arm
     services, unstow, dig; stop both."""
-    import rospy
     from geometry_msgs.msg import WrenchStamped
     from sensor_msgs.msg import JointState
 
@@ -102,12 +102,10 @@ def _record_dig(
         unstow = ros_stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
         assert unstow.success, unstow.message
         subs = [
-            rospy.Subscriber("/sim/scoop_state", ToolStateMsg, on_state, queue_size=None),
-            rospy.Subscriber(
-                "/sim/scoop_model_state", ToolStateMsg, on_model_state, queue_size=None
-            ),
-            rospy.Subscriber("/sim/scoop_model_wrench", WrenchStamped, on_wrench, queue_size=None),
-            rospy.Subscriber("/joint_states", JointState, on_joints, queue_size=None),
+            subscribe("/sim/scoop_state", ToolStateMsg, on_state),
+            subscribe("/sim/scoop_model_state", ToolStateMsg, on_model_state),
+            subscribe("/sim/scoop_model_wrench", WrenchStamped, on_wrench),
+            subscribe("/joint_states", JointState, on_joints),
         ]
         try:
             dig = ros_stack.service("/arm/dig_linear", DigLinear)(

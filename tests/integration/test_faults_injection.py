@@ -14,6 +14,7 @@ from dynamic_reconfigure.client import Client
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
+from ow_mission.testing import subscribe
 from ow_msgs.msg import JointStatesFlag
 from ow_msgs.srv import SetPidGains
 from owl_msgs.msg import (
@@ -30,7 +31,7 @@ class Latest:
     def __init__(self, topic: str, msg_type: type) -> None:
         self.msg = None
         self._changed = threading.Condition()
-        self.sub = rospy.Subscriber(topic, msg_type, self._on, queue_size=10)
+        self.sub = subscribe(topic, msg_type, self._on)
 
     def _on(self, msg) -> None:
         with self._changed:

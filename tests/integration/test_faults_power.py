@@ -17,6 +17,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Header
 
+from ow_mission.testing import subscribe
 from ow_msgs.msg import Power
 from ow_power.config import BatteryConfig
 from owl_msgs.msg import (
@@ -52,7 +53,7 @@ class Messages:
     def __init__(self, topic: str, msg_type: type) -> None:
         self.items: list = []
         self.lock = threading.Lock()
-        self.sub = rospy.Subscriber(topic, msg_type, self._on, queue_size=1000)
+        self.sub = subscribe(topic, msg_type, self._on)
 
     def _on(self, msg) -> None:
         with self.lock:

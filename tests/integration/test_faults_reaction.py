@@ -28,7 +28,7 @@ from test_faults_injection import Latest
 import owl_msgs.msg as owl
 from ow_lander.description import DEFAULT_GROUND_Z, GRINDER_TIP_FRAME
 from ow_lander.model import LanderModel
-from ow_mission.testing import set_terrain
+from ow_mission.testing import set_terrain, subscribe
 from ow_msgs.msg import JointStatesFlag
 from ow_msgs.srv import Stow, Unstow
 from owl_msgs.msg import ArmFaultsStatus, PanTiltFaultsStatus, SystemFaultsStatus
@@ -104,9 +104,7 @@ def test_lock_half_way_through_a_grind_stops_the_arm_and_fails_naming_the_joint(
             in_trench.set()
 
     grind.send_goal(owl.TaskGrindGoal(1.65, 0.0, 0.05, 0.4, 1.0, GROUND))
-    # rospy shares one queue per topic in a process, the last queue_size set wins: never 1 here,
-    # or other tests' /joint_states recorders in this process would keep 1 message in 4.
-    watch = rospy.Subscriber("/joint_states", JointState, on_joints, queue_size=100000)
+    watch = subscribe("/joint_states", JointState, on_joints)
     try:
         assert in_trench.wait(300), "the grinder never went into the ground"
         watch.unregister()
@@ -141,6 +139,23 @@ def test_lock_half_way_through_a_grind_stops_the_arm_and_fails_naming_the_joint(
     assert state == GoalStatus.SUCCEEDED, text
 
 
+def _arm_services_see_goal_error(standing: bool, timeout_s: float = 30.0) -> None:
+    """Wait until the arm services act on the goal error's new state. They learn it from
+    /system_faults_status on a connection of their own, which under load can deliver it later
+    than this test's (as in OceanWATERS, the refusal follows the detector's topic). The probe is
+    an ArmMoveJoints goal of no motion (relative, zeros): refused while the error stands, a
+    success that moves nothing otherwise."""
+    still = owl.ArmMoveJointsGoal(True, [0.0] * 6)
+    expected = GoalStatus.REJECTED if standing else GoalStatus.SUCCEEDED
+    deadline = time.monotonic() + timeout_s
+    while True:
+        state, _, text = run("ArmMoveJoints", still)
+        if state == expected:
+            return
+        assert time.monotonic() < deadline, f"arm services still answer {state} ({text})"
+        time.sleep(0.05)
+
+
 def test_goal_error_refuses_goals_until_fault_clear(stack):
     inject(stack, auto_clear_goal_errors=False)
     try:
@@ -150,6 +165,7 @@ def test_goal_error_refuses_goals_until_fault_clear(stack):
         stack.system.wait_for(
             lambda m: m.value & SystemFaultsStatus.ARM_GOAL_ERROR, "ARM_GOAL_ERROR"
         )
+        _arm_services_see_goal_error(True)
         state, _, text = run("ArmUnstow", owl.ArmUnstowGoal())
         assert state == GoalStatus.REJECTED
         assert "ARM_GOAL_ERROR stands" in text and "FaultClear" in text
@@ -163,6 +179,7 @@ def test_goal_error_refuses_goals_until_fault_clear(stack):
         stack.system.wait_for(
             lambda m: not m.value & SystemFaultsStatus.ARM_GOAL_ERROR, "ARM_GOAL_ERROR cleared"
         )
+        _arm_services_see_goal_error(False)
         state, _, text = run("ArmUnstow", owl.ArmUnstowGoal())
         assert state == GoalStatus.SUCCEEDED, text
     finally:

@@ -15,7 +15,7 @@ import rospy
 
 from ow_lander.conversions import height_map_from_msg
 from ow_lander.description import DEFAULT_GROUND_Z
-from ow_mission.testing import FLAT, set_terrain
+from ow_mission.testing import FLAT, set_terrain, subscribe
 from ow_msgs.msg import GuardedMoveResult
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.srv import Grind, GuardedMove
@@ -46,7 +46,7 @@ def _guarded_move(stack, x, y, z, search=0.5, normal=(0.0, 0.0, 1.0)):
     results = []
     started = rospy.Time.now()
     # The topic is latched: keep only what this move published.
-    sub = rospy.Subscriber(
+    sub = subscribe(
         "/guarded_move_result",
         GuardedMoveResult,
         lambda msg: results.append(msg) if msg.header.stamp >= started else None,

@@ -5,7 +5,7 @@ import pytest
 import rospy
 
 from ow_lander.description import DEFAULT_GROUND_Z
-from ow_mission.testing import wait_connected
+from ow_mission.testing import subscribe, wait_connected
 from ow_msgs.srv import GuardedMove, Unstow
 from owl_msgs.msg import ArmEndEffectorForceTorque
 
@@ -36,7 +36,7 @@ def test_wrist_sensor_reads_zero_in_free_space(stack):
 def test_force_detector_finds_the_ground(stack):
     forces = []
     sub = wait_connected(
-        rospy.Subscriber(
+        subscribe(
             "/arm_end_effector_force_torque",
             ArmEndEffectorForceTorque,
             lambda m: forces.append(m.value.force.x**2 + m.value.force.y**2 + m.value.force.z**2),

@@ -17,7 +17,7 @@ from geometry_msgs.msg import Point
 from sensor_msgs.msg import JointState
 
 from ow_lander.pan_tilt import AntennaPointing
-from ow_mission.testing import FLAT
+from ow_mission.testing import FLAT, subscribe
 from owl_msgs.msg import (
     PanTiltMoveCartesianAction,
     PanTiltMoveCartesianGoal,
@@ -36,11 +36,10 @@ class Feedback:
     def __init__(self) -> None:
         self.lock = threading.Lock()
         self.stamps: list[float] = []
-        rospy.Subscriber(
+        subscribe(
             "/PanTiltMoveJoints/feedback",
             PanTiltMoveJointsActionFeedback,
             self._on,
-            queue_size=1000,
         )
 
     def _on(self, msg) -> None:

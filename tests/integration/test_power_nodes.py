@@ -19,6 +19,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
 
+from ow_mission.testing import subscribe
 from ow_msgs.msg import Operation, Power
 
 PERIOD_S = 0.01  # 100 Hz of simulation time, as the simulation publishes
@@ -92,7 +93,7 @@ class Feeder:
 class Status:
     def __init__(self, node_name):
         self.latest = {}
-        self._sub = rospy.Subscriber(f"/{node_name}/status", String, self._on)
+        self._sub = subscribe(f"/{node_name}/status", String, self._on)
 
     def _on(self, msg):
         self.latest = json.loads(msg.data)
@@ -108,7 +109,7 @@ def test_power_node_sums_the_configured_joints_by_name(ros_stack):
         wait_for_topics=["/subset/power"],
     )
     received = []
-    sub = rospy.Subscriber("/subset/power", Power, received.append, queue_size=1000)
+    sub = subscribe("/subset/power", Power, received.append)
     feeder = Feeder("/subset/joint_states")
     _wait_connected(ros_stack, "/power_subset", ["/subset/joint_states"])
     _wait_publishing(feeder.joint_states, 1)

@@ -22,6 +22,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ow_lander.description import DEFAULT_GROUND_Z, UNSTOWED
 from ow_lander.model import LanderModel
+from ow_mission.testing import subscribe
 from ow_msgs.msg import GuardedMoveResult, Power
 from ow_msgs.srv import GuardedMove, Unstow
 from ow_power.energy import ArmEnergyModel
@@ -56,10 +57,8 @@ class Trace:
         self.joint_states: dict[int, JointState] = {}
         self.damping: dict[int, JointState] = {}
         self.power: dict[int, Power] = {}
-        # Every message: rospy shares one queue per topic in a process and the last queue_size
-        # set wins, so set a large one (None would keep whatever another test left).
         self._subs = [
-            rospy.Subscriber(topic, cls, self._store(store), queue_size=100000)
+            subscribe(topic, cls, self._store(store))
             for topic, cls, store in (
                 ("/joint_states", JointState, self.joint_states),
                 ("/sim/joint_damping", JointState, self.damping),
@@ -249,7 +248,7 @@ def test_guarded_move_power_rises_at_ground_contact(stack):
     _unstow(stack)
     results = []
     started = rospy.Time.now()
-    sub = rospy.Subscriber(
+    sub = subscribe(
         "/guarded_move_result",
         GuardedMoveResult,
         lambda msg: results.append(msg) if msg.header.stamp >= started else None,

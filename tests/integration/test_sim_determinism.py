@@ -9,6 +9,7 @@ import rospy
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from ow_mission.testing import subscribe
 from ow_msgs.srv import StepSimulation
 
 #: rad, an arm pose in front of the lander, reached from the stowed pose by a trajectory.
@@ -23,11 +24,10 @@ def run_once(ros_stack) -> np.ndarray:
         wait_for_services=["/sim/step"],
     )
     rows: list[list[float]] = []
-    sub = rospy.Subscriber(
+    sub = subscribe(
         "/joint_states",
         JointState,
         lambda m: rows.append([m.header.stamp.to_sec(), *m.position, *m.velocity, *m.effort]),
-        queue_size=100000,
     )
     commands = rospy.Publisher("/sim/joint_trajectory", JointTrajectory, queue_size=1)
     try:

@@ -25,7 +25,7 @@ from ow_lander.description import (
     SCOOP_BELOW_GROUND,
     URDF_PATH,
 )
-from ow_mission.testing import FLAT
+from ow_mission.testing import FLAT, subscribe
 from ow_msgs.msg import HeightMap
 from ow_msgs.srv import SetPidGains, SetTerrain, StepSimulation
 
@@ -36,7 +36,7 @@ class Recorder:
     def __init__(self, topic: str, msg_type: type) -> None:
         self.lock = threading.Lock()
         self.messages: list = []
-        self.sub = rospy.Subscriber(topic, msg_type, self._on, queue_size=100000)
+        self.sub = subscribe(topic, msg_type, self._on)
 
     def _on(self, msg) -> None:
         with self.lock:

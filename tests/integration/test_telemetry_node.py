@@ -17,7 +17,7 @@ from std_srvs.srv import Trigger
 
 from ow_lander.description import ARM_JOINTS, UNSTOWED
 from ow_lander.model import LanderModel
-from ow_mission.testing import FLAT
+from ow_mission.testing import FLAT, subscribe
 from ow_msgs.srv import StepSimulation
 from owl_msgs.msg import (
     ArmJointAccelerations,
@@ -53,7 +53,7 @@ class Recorder:
     def __init__(self, topic: str, msg_type: type) -> None:
         self.lock = threading.Lock()
         self.messages: list = []
-        self.sub = rospy.Subscriber(topic, msg_type, self._on, queue_size=100000)
+        self.sub = subscribe(topic, msg_type, self._on)
 
     def _on(self, msg) -> None:
         with self.lock:

@@ -11,6 +11,7 @@ from visualization_msgs.msg import Marker
 
 from ow_lander.conversions import height_map_from_msg
 from ow_lander.description import SCOOP_TIP_FRAME, URDF_PATH
+from ow_mission.testing import subscribe
 from ow_msgs.msg import GuardedMoveResult
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.srv import GuardedMove, Unstow
@@ -63,7 +64,7 @@ def test_the_terrain_marker_is_the_mesh_of_the_simulations_terrain(stack):
 
 def test_a_plan_is_drawn_and_the_ground_found_is_marked(stack):
     paths = []
-    sub = rospy.Subscriber("/viz/tool_path", Marker, paths.append, queue_size=10)
+    sub = subscribe("/viz/tool_path", Marker, paths.append)
     try:
         response = stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
         assert response.success, response.message

@@ -15,6 +15,7 @@ from ow_faults.detection import FaultDetector, FaultStatus, action_group
 from ow_faults.errors import FaultError
 from ow_faults.listener_node import FaultsListener
 from ow_lander.actions import ARM_ACTIONS
+from ow_lander.conversions import EVERY_MESSAGE
 from ow_msgs.msg import JointStatesFlag
 from owl_msgs.msg import (
     ArmEndEffectorForceTorque,
@@ -65,31 +66,33 @@ class DetectorNode:
         ]
         self._publish(self.detector.status, rospy.Time(0))
         self.listener = FaultsListener(partial(self._update, "on_injected"), "detector")
-        rospy.Subscriber("/flags/joint_states", JointStatesFlag, self._on_flags, queue_size=10)
+        rospy.Subscriber(
+            "/flags/joint_states", JointStatesFlag, self._on_flags, queue_size=EVERY_MESSAGE
+        )
         rospy.Subscriber(
             "/arm_end_effector_force_torque",
             ArmEndEffectorForceTorque,
             lambda m: self._update("on_wrist", m.header.stamp.to_sec(), stamp=m.header.stamp),
-            queue_size=10,
+            queue_size=EVERY_MESSAGE,
         )
         rospy.Subscriber(
             "/battery_state_of_charge",
             BatteryStateOfCharge,
             lambda m: self._update("on_soc", m.value, stamp=m.header.stamp),
-            queue_size=10,
+            queue_size=EVERY_MESSAGE,
         )
         rospy.Subscriber(
             "/battery_temperature",
             BatteryTemperature,
             lambda m: self._update("on_temperature", m.value, stamp=m.header.stamp),
-            queue_size=10,
+            queue_size=EVERY_MESSAGE,
         )
         for action in ACTIONS:
             rospy.Subscriber(
                 f"/{action}/status",
                 GoalStatusArray,
                 partial(self._on_status, action),
-                queue_size=10,
+                queue_size=EVERY_MESSAGE,
             )
         self.clear_server = actionlib.ActionServer(
             "FaultClear", FaultClearAction, self._on_clear, auto_start=False

@@ -51,14 +51,16 @@ class ArmObserver:
         self.signal_pub = rospy.Publisher(
             "/arm/ground_detector", GroundDetectorSignal, queue_size=100
         )
-        rospy.Subscriber("/joint_states", JointState, self._on_joint_states, queue_size=100)
-        rospy.Subscriber("/tf", TFMessage, self._on_tf, queue_size=100)
+        rospy.Subscriber(
+            "/joint_states", JointState, self._on_joint_states, queue_size=conv.EVERY_MESSAGE
+        )
+        rospy.Subscriber("/tf", TFMessage, self._on_tf, queue_size=conv.EVERY_MESSAGE)
         rospy.Subscriber("/tf_static", TFMessage, self._on_tf, callback_args=True, queue_size=10)
         rospy.Subscriber(
             "/arm_end_effector_force_torque",
             ArmEndEffectorForceTorque,
             self._on_wrist,
-            queue_size=50,
+            queue_size=conv.EVERY_MESSAGE,
         )
 
     def _on_joint_states(self, msg: JointState) -> None:

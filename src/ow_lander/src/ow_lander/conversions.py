@@ -21,6 +21,13 @@ if TYPE_CHECKING:  # annotations only: reading messages does not load the model 
     from ow_lander.execution import DetectorSignal, ExecutionResult
     from ow_lander.trajectory import Trajectory
 
+#: ``queue_size`` of a subscriber that must process every message (joint states for the power
+#: integral and the arm's monitor, fault flags, ...): no receive limit. rospy drops all but the
+#: newest ``queue_size`` messages of each socket read, and a node lagging a simulation that runs
+#: many times faster than real time reads hundreds at once. rospy's -1 sets "no limit" even
+#: where another subscriber of the topic in the process set one (None would leave that).
+EVERY_MESSAGE = -1
+
 
 def height_map_from_msg(msg: Any) -> HeightMap:
     """A :class:`HeightMap` from an ``ow_msgs/HeightMap``.

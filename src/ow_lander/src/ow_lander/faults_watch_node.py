@@ -9,6 +9,7 @@ from collections.abc import Callable
 import rospy
 from dynamic_reconfigure.msg import Config
 
+from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.fault_reaction import FaultReaction, group_of, watches_force
 from owl_msgs.msg import ArmFaultsStatus, PanTiltFaultsStatus, SystemFaultsStatus
 
@@ -34,13 +35,17 @@ class FaultWatch:
         self._lock = threading.Lock()
         self._state = FaultReaction()
         self._on_status = on_status
-        rospy.Subscriber("/faults/parameter_updates", Config, self._on_config, queue_size=10)
+        rospy.Subscriber(
+            "/faults/parameter_updates", Config, self._on_config, queue_size=EVERY_MESSAGE
+        )
         for topic, cls, attribute in (
             ("/arm_faults_status", ArmFaultsStatus, "arm"),
             ("/pan_tilt_faults_status", PanTiltFaultsStatus, "pan_tilt"),
             ("/system_faults_status", SystemFaultsStatus, "system"),
         ):
-            rospy.Subscriber(topic, cls, self._on_bits, callback_args=attribute, queue_size=10)
+            rospy.Subscriber(
+                topic, cls, self._on_bits, callback_args=attribute, queue_size=EVERY_MESSAGE
+            )
 
     def _on_config(self, msg: Config) -> None:
         values = {kv.name: kv.value for kv in msg.bools}

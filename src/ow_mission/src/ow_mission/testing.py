@@ -166,6 +166,22 @@ def set_terrain(stack: RosStack, spec: str = FLAT, lift_arm: bool = False) -> No
         time.sleep(0.2)  # ... and the arm services, subscribed to it too, have it as well
 
 
+def subscribe(topic: str, data_class: type, callback: Callable[..., Any], **kwargs: Any) -> Any:
+    """A test's ``rospy.Subscriber`` that receives every message of ``topic``.
+
+    rospy keeps one receive queue per topic in a process, and the last ``queue_size`` given by
+    any subscriber of that topic in the process wins (None leaves it as it was); a queue of n
+    keeps only the newest n messages of each socket read, so a recorder lagging a fast
+    simulation loses samples. Every subscriber of the test process is made here, unbounded
+    (:data:`ow_lander.conversions.EVERY_MESSAGE`), so none of them limits another.
+    """
+    import rospy
+
+    from ow_lander.conversions import EVERY_MESSAGE
+
+    return rospy.Subscriber(topic, data_class, callback, queue_size=EVERY_MESSAGE, **kwargs)
+
+
 def wait_connected(endpoint: Any, timeout_s: float = 10.0) -> Any:
     """Wait (wall time) until a rospy Publisher or Subscriber has a connection and return it:
     a message published, or one published to a subscriber, before then is lost.

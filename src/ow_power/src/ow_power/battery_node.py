@@ -11,6 +11,7 @@ from sensor_msgs.msg import BatteryState as BatteryStateMsg
 from ow_faults.errors import FaultError
 from ow_faults.injection import FaultSet
 from ow_faults.listener_node import FaultsListener
+from ow_lander.conversions import EVERY_MESSAGE
 from ow_msgs.msg import Power
 from ow_power.battery import Battery
 from ow_power.battery_faults import PowerFaults
@@ -20,9 +21,8 @@ from ow_power.config import BatteryConfig
 from ow_power.errors import ConfigError, PowerError
 from owl_msgs.msg import BatteryRemainingUsefulLife, BatteryStateOfCharge, BatteryTemperature
 
-#: ``/power`` messages queued: 10 s of the simulation's 100 Hz, as the power node's own queue; a
-#: dropped message would stretch the next interval.
-QUEUE_SIZE = 1000
+# Every ``/power`` message, as the power node takes every joint state: a dropped one would
+# stretch the next interval (rospy's -1: no receive queue limit).
 
 
 class BatteryNode:
@@ -34,7 +34,7 @@ class BatteryNode:
 
     ROS API:
         Subscribes:
-            ``power`` (ow_msgs/Power, queue 1000): ``electrical_power`` (W: the motors'
+            ``power`` (ow_msgs/Power, every message): ``electrical_power`` (W: the motors'
             electrical power and P0), held over the interval ending at each stamp.
             ``/faults/parameter_updates`` (dynamic_reconfigure/Config, latched): the power
             faults (:mod:`ow_power.battery_faults`): extra load, custom profile, disconnected
@@ -84,7 +84,9 @@ class BatteryNode:
                 ("battery_state", BatteryStateMsg),
             )
         ]
-        self._subscriber = rospy.Subscriber("power", Power, self._on_power, queue_size=QUEUE_SIZE)
+        self._subscriber = rospy.Subscriber(
+            "power", Power, self._on_power, queue_size=EVERY_MESSAGE
+        )
         self._faults = FaultsListener(self._on_faults, "battery")
 
     def _on_faults(self, faults: FaultSet) -> None:

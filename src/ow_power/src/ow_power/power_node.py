@@ -3,21 +3,25 @@
 from __future__ import annotations
 
 import sys
+import warnings
 
 import rospy
 from sensor_msgs.msg import JointState
 
+from ow_lander.conversions import EVERY_MESSAGE
 from ow_msgs.msg import Power
 from ow_power.config import PowerConfig
 from ow_power.conversions import joint_state_fields, power_message
 from ow_power.errors import ConfigError, PowerError
 from ow_power.model import PowerIntegrator
 
-#: Messages queued per topic: 10 s of joint states at the simulation's 100 Hz. Every joint state
-#: counts (a dropped one stretches the next interval of eq. 4), and a simulation running many
-#: times faster than real time outpaces a node that is briefly descheduled; rospy drops the oldest
-#: message beyond this (at 100, /power missed 0.33 s of joint states on a loaded 2-core machine).
-QUEUE_SIZE = 1000
+# Every joint state counts (a dropped one stretches the next interval of eq. 4), and a simulation
+# running many times faster than real time outpaces a node that is briefly descheduled. rospy
+# drops messages beyond a subscriber's queue_size (of each socket read) and beyond a publisher's
+# (its writer thread lagging): at 100, then at 1000, /power missed 0.33 s and 0.51 s of joint
+# states on a loaded 2-core machine. So neither is bounded: the subscriber's queue is unlimited
+# (rospy's -1) and /power is written in the callback (queue_size None); a node that cannot keep
+# up slows the simulation's synchronous publisher down instead of losing samples.
 
 
 class PowerNode:
@@ -25,11 +29,11 @@ class PowerNode:
 
     ROS API:
         Subscribes:
-            ``joint_states`` (sensor_msgs/JointState, queue 1000): position rad, velocity
+            ``joint_states`` (sensor_msgs/JointState, every message): position rad, velocity
             rad/s, effort = applied torque N m; joints matched by name.
         Publishes:
-            ``power`` (ow_msgs/Power, queue 1000): one message per usable joint state, stamped
-            with its stamp; energies accumulate from the node's start.
+            ``power`` (ow_msgs/Power, written in the callback): one message per usable joint
+            state, stamped with its stamp; energies accumulate from the node's start.
         Parameters (private, read once; see :class:`~ow_power.config.PowerConfig`):
             ``~auxiliary_power_w`` (float, W, default 43.0): P0.
             ``~motor_efficiency`` (float in (0, 1], default 0.9).
@@ -40,9 +44,11 @@ class PowerNode:
     def __init__(self, config: PowerConfig) -> None:
         """Advertise ``power`` and subscribe to ``joint_states``."""
         self._integrator = PowerIntegrator(config)
-        self._publisher = rospy.Publisher("power", Power, queue_size=QUEUE_SIZE)
+        with warnings.catch_warnings():  # rospy warns of queue_size None
+            warnings.simplefilter("ignore")
+            self._publisher = rospy.Publisher("power", Power, queue_size=None)
         self._subscriber = rospy.Subscriber(
-            "joint_states", JointState, self._on_joint_states, queue_size=QUEUE_SIZE
+            "joint_states", JointState, self._on_joint_states, queue_size=EVERY_MESSAGE
         )
 
     def _on_joint_states(self, msg: JointState) -> None:

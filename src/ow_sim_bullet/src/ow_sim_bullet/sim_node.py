@@ -16,6 +16,7 @@ from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from ow_dem_bridge.api import REMOTE_MODEL_NAME
 from ow_dem_bridge.remote_node import make_remote_model
+from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.description import URDF_PATH
 from ow_lander.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
@@ -121,9 +122,11 @@ class SimNode:
         )
         for joint, controller in CONTROLLER_NAMES.items():
             topic = f"/{controller}_position_controller/command"
-            rospy.Subscriber(topic, Float64, partial(self._on_setpoint, joint), queue_size=10)
+            rospy.Subscriber(
+                topic, Float64, partial(self._on_setpoint, joint), queue_size=EVERY_MESSAGE
+            )
         rospy.Subscriber(
-            "~joint_trajectory", JointTrajectoryMsg, self._on_trajectory, queue_size=10
+            "~joint_trajectory", JointTrajectoryMsg, self._on_trajectory, queue_size=EVERY_MESSAGE
         )
         self._received_pub = rospy.Publisher("~trajectory_received", Header, queue_size=10)
         rospy.Service("~reset", Trigger, self._on_reset)
