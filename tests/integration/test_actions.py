@@ -23,7 +23,7 @@ import owl_msgs.msg as owl
 from ow_lander.actions import quaternion_from_rotation
 from ow_lander.description import ARM_JOINTS, DEFAULT_GROUND_Z, SCOOP_TIP_FRAME, UNSTOWED
 from ow_lander.model import LanderModel
-from ow_mission.testing import set_terrain, subscribe, wait_connected
+from ow_mission.testing import action_client, set_terrain, subscribe, wait_connected
 from ow_msgs.msg import GroundDetectorSignal
 from ow_msgs.srv import Unstow
 
@@ -82,10 +82,12 @@ def model():
 def client(name: str) -> actionlib.SimpleActionClient:
     """One client per action for the whole module: actionlib's wait_for_server does not wait
     for the server's result topic to reach a new client, whose first result may be lost."""
-    c = actionlib.SimpleActionClient(name, getattr(owl, f"{name}Action"))
-    assert c.wait_for_server(rospy.Duration(30)), f"no {name} server"
-    time.sleep(0.5)
-    return c
+    return connected_client(name)
+
+
+def connected_client(name: str) -> actionlib.SimpleActionClient:
+    """A new client of OceanWATERS' action ``name`` (see :func:`action_client`)."""
+    return action_client(name, getattr(owl, f"{name}Action"))
 
 
 @functools.cache
@@ -334,9 +336,7 @@ BAD_GOALS = [
 def test_bad_goal_is_refused_naming_the_field(stack, name, goal, named):
     # A fresh client: a reused one was seen (once in 3 runs) never to get the result of a goal
     # the server rejected at once.
-    c = actionlib.SimpleActionClient(name, getattr(owl, f"{name}Action"))
-    assert c.wait_for_server(rospy.Duration(30))
-    time.sleep(0.5)
+    c = connected_client(name)
     c.send_goal(goal)
     assert c.wait_for_result(rospy.Duration(30)), f"{name} did not end"
     state, text = c.get_state(), c.get_goal_status_text()

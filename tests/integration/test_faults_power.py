@@ -8,7 +8,6 @@ from __future__ import annotations
 import threading
 import time
 
-import actionlib
 import pytest
 import rospy
 from actionlib_msgs.msg import GoalStatus
@@ -17,7 +16,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Header
 
-from ow_mission.testing import subscribe
+from ow_mission.testing import action_client, subscribe
 from ow_msgs.msg import Power
 from ow_power.config import BatteryConfig
 from owl_msgs.msg import (
@@ -145,8 +144,7 @@ def test_low_state_of_charge_sets_its_bit_at_the_threshold(stack):
 
 
 def test_fault_clear_refuses_a_value_that_is_not_a_goal_error(stack):
-    client = actionlib.SimpleActionClient("FaultClear", FaultClearAction)
-    assert client.wait_for_server(rospy.Duration(30))
+    client = action_client("FaultClear", FaultClearAction)
     client.send_goal(FaultClearGoal(fault=SystemFaultsStatus.POWER_EXECUTION_ERROR))
     assert client.wait_for_result(rospy.Duration(30))
     assert client.get_state() == GoalStatus.REJECTED

@@ -14,7 +14,6 @@ from __future__ import annotations
 import threading
 import time
 
-import actionlib
 import numpy as np
 import pytest
 import rospy
@@ -22,15 +21,16 @@ from actionlib_msgs.msg import GoalStatus
 from dynamic_reconfigure.client import Client
 from geometry_msgs.msg import Point, Vector3
 from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
 from test_actions import JointLog, client, run
 from test_faults_injection import Latest
 
 import owl_msgs.msg as owl
 from ow_lander.description import DEFAULT_GROUND_Z, GRINDER_TIP_FRAME
 from ow_lander.model import LanderModel
-from ow_mission.testing import set_terrain, subscribe
+from ow_mission.testing import action_client, set_terrain, subscribe
 from ow_msgs.msg import JointStatesFlag
-from ow_msgs.srv import Stow, Unstow
+from ow_msgs.srv import StepSimulation, Stow, Unstow
 from owl_msgs.msg import ArmFaultsStatus, PanTiltFaultsStatus, SystemFaultsStatus
 
 GROUND = DEFAULT_GROUND_Z
@@ -38,6 +38,8 @@ GROUND = DEFAULT_GROUND_Z
 STOP_WITHIN_S = 0.5
 #: rad/s, an arm joint slower than this is at rest.
 REST_SPEED = 0.01
+#: s of wall time the reacting nodes get, the clock stopped, to receive an injected fault.
+REACT_WALL_S = 1.0
 NO_FAULTS = {
     "shou_pitch_joint_locked_failure": False,
     "ant_pan_joint_locked_failure": False,
@@ -68,9 +70,28 @@ def inject(stack, **changes) -> None:
     stack.faults.update_configuration(changes)
 
 
+def inject_paused(stack, seen, what: str, **changes) -> None:
+    """Inject ``changes`` with the simulation's clock stopped, so that they take effect at the
+    simulation time the test chose however loaded the machine: pause, inject, take one physics
+    step (the simulation flags a locked joint with the joint states it publishes after a step),
+    wait until ``seen()`` (the detector's status on this test's connection), then give the nodes
+    that react to it on their own connections (arm services, pan/tilt) ``REACT_WALL_S`` before
+    resuming."""
+    pause, resume = stack.service("/sim/pause", Trigger), stack.service("/sim/resume", Trigger)
+    assert pause().success
+    try:
+        inject(stack, **changes)
+        assert stack.service("/sim/step", StepSimulation)(steps=1).success
+        seen(what)
+        time.sleep(REACT_WALL_S)
+    finally:
+        assert resume().success
+
+
 def clear_faults(stack) -> None:
     inject(stack, **NO_FAULTS)
     stack.system.wait_for(lambda m: m.value & ~_GOAL_ERRORS == 0, "no execution error")
+    _arm_services_see_goal_error(False)  # and the arm services have the news too
 
 
 _GOAL_ERRORS = (
@@ -140,11 +161,11 @@ def test_lock_half_way_through_a_grind_stops_the_arm_and_fails_naming_the_joint(
 
 
 def _arm_services_see_goal_error(standing: bool, timeout_s: float = 30.0) -> None:
-    """Wait until the arm services act on the goal error's new state. They learn it from
-    /system_faults_status on a connection of their own, which under load can deliver it later
-    than this test's (as in OceanWATERS, the refusal follows the detector's topic). The probe is
-    an ArmMoveJoints goal of no motion (relative, zeros): refused while the error stands, a
-    success that moves nothing otherwise."""
+    """Wait until the arm services act on the arm's fault state: a goal error (or an execution
+    error) ``standing`` or not. They learn it from the detector's topics on connections of their
+    own, which under load can deliver it later than this test's (as in OceanWATERS, the refusal
+    follows the detector's topics). The probe is an ArmMoveJoints goal of no motion (relative,
+    zeros): refused while an error stands, a success that moves nothing otherwise."""
     still = owl.ArmMoveJointsGoal(True, [0.0] * 6)
     expected = GoalStatus.REJECTED if standing else GoalStatus.SUCCEEDED
     deadline = time.monotonic() + timeout_s
@@ -171,8 +192,7 @@ def test_goal_error_refuses_goals_until_fault_clear(stack):
         assert "ARM_GOAL_ERROR stands" in text and "FaultClear" in text
         response = stack.service("/arm/stow", Stow)(delete_prev_traj=False)
         assert not response.success and "ARM_GOAL_ERROR stands" in response.message
-        clear = actionlib.SimpleActionClient("FaultClear", owl.FaultClearAction)
-        assert clear.wait_for_server(rospy.Duration(30))
+        clear = action_client("FaultClear", owl.FaultClearAction)
         clear.send_goal(owl.FaultClearGoal(fault=SystemFaultsStatus.ARM_GOAL_ERROR))
         assert clear.wait_for_result(rospy.Duration(30))
         assert clear.get_state() == GoalStatus.SUCCEEDED
@@ -207,7 +227,15 @@ def test_ft_zero_signal_during_find_surface_never_gives_a_surface(stack, continu
         while not descending and time.monotonic() < deadline:
             time.sleep(0.005)
         assert descending, "the scoop never came down towards the surface"
-        inject(stack, enable=True, zero_signal_failure=True)
+        inject_paused(
+            stack,
+            lambda what: stack.arm.wait_for(
+                lambda m: m.value & ArmFaultsStatus.NO_FORCE_DATA, what
+            ),
+            "NO_FORCE_DATA",
+            enable=True,
+            zero_signal_failure=True,
+        )
         assert find.wait_for_result(rospy.Duration(120)), "ArmFindSurface did not end"
         text = find.get_goal_status_text()
         assert find.get_state() == GoalStatus.ABORTED, text
@@ -230,7 +258,14 @@ def test_locked_antenna_fails_pan_tilt_goals(stack):
         deadline = time.monotonic() + 60
         while pan_tilt.get_state() != GoalStatus.ACTIVE and time.monotonic() < deadline:
             time.sleep(0.005)
-        inject(stack, ant_pan_joint_locked_failure=True)
+        inject_paused(
+            stack,
+            lambda what: stack.pan_tilt.wait_for(
+                lambda m: m.value & PanTiltFaultsStatus.PAN_JOINT_LOCKED, what
+            ),
+            "PAN_JOINT_LOCKED",
+            ant_pan_joint_locked_failure=True,
+        )
         assert pan_tilt.wait_for_result(rospy.Duration(60))
         text = pan_tilt.get_goal_status_text()
         assert pan_tilt.get_state() == GoalStatus.ABORTED, text

@@ -8,7 +8,6 @@ import math
 import threading
 import time
 
-import actionlib
 import numpy as np
 import pytest
 import rospy
@@ -17,7 +16,7 @@ from geometry_msgs.msg import Point
 from sensor_msgs.msg import JointState
 
 from ow_lander.pan_tilt import AntennaPointing
-from ow_mission.testing import FLAT, subscribe
+from ow_mission.testing import FLAT, action_client, subscribe
 from owl_msgs.msg import (
     PanTiltMoveCartesianAction,
     PanTiltMoveCartesianGoal,
@@ -63,11 +62,8 @@ def mast(ros_stack):
     node = ros_stack.start_node(
         "ow_lander", "pan_tilt", wait_for_topics=["/PanTiltMoveJoints/status"]
     )
-    joints = actionlib.SimpleActionClient("PanTiltMoveJoints", PanTiltMoveJointsAction)
-    cartesian = actionlib.SimpleActionClient("PanTiltMoveCartesian", PanTiltMoveCartesianAction)
-    assert joints.wait_for_server(rospy.Duration(30)) and cartesian.wait_for_server(
-        rospy.Duration(30)
-    )
+    joints = action_client("PanTiltMoveJoints", PanTiltMoveJointsAction)
+    cartesian = action_client("PanTiltMoveCartesian", PanTiltMoveCartesianAction)
     return node, joints, cartesian, Feedback()
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+from collections import deque
 from collections.abc import Callable
 from typing import Any
 
@@ -12,6 +13,7 @@ import rospy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
+from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.description import ANTENNA_JOINTS
 from ow_lander.errors import GoalError
 from ow_lander.faults_watch_node import FaultWatch
@@ -24,11 +26,11 @@ from owl_msgs.msg import (
     PanTiltMoveJointsResult,
 )
 
-#: Hz of sim time, feedback and arrival checks.
+#: Hz of sim time, feedback (by the joint states' stamps).
 FEEDBACK_HZ = 20.0
 #: s of sim time a move may take before it is aborted (OceanWATERS: 30 s).
 MOVE_TIMEOUT_S = 30.0
-#: s of wall time to wait for a first /joint_states.
+#: s of wall time to wait for a first /joint_states, and for each next one during a move.
 JOINT_STATE_WAIT_S = 5.0
 
 PAN_COMMAND = "/ant_pan_position_controller/command"
@@ -43,12 +45,15 @@ class PanTiltNode:
     Action servers (owl_msgs):
         PanTiltMoveJoints: goal pan, tilt rad (|pan| <= 3.2, |tilt| <= 1.56); succeeds when both
             joints are within 0.05 rad of it; feedback and result pan_position, tilt_position rad,
-            feedback at 20 Hz of sim time.
+            feedback at 20 Hz of sim time (every 0.05 s of joint-state stamps, whatever the
+            machine's load).
         PanTiltMoveCartesian: goal frame (0 base_link, 1 tool = l_scoop_tip) and point m; points
             the stereo camera's axis through the point (pan/tilt from the URDF's kinematics).
+        A move is watched on every joint state, in order: arrival, cancel, faults, the timeout.
         A cancel stops the mast where it is and holds it (preempted); a move not done within 30 s
-        of sim time is stopped and aborted. Bad goals (NaN/inf, beyond a limit, unknown frame)
-        are aborted at once with a status text naming the field, its value and the limit.
+        of sim time (joint-state stamps) is stopped and aborted. Bad goals (NaN/inf, beyond a
+        limit, unknown frame) are aborted at once with a status text naming the field, its value
+        and the limit.
         Faults (:class:`~ow_lander.faults_watch_node.FaultWatch`): a goal is aborted at once
         while PAN_TILT_GOAL_ERROR stands with ``auto_clear_goal_errors`` false, or while an
         antenna joint is locked (PAN_TILT_EXECUTION_ERROR); a lock during a move stops the
@@ -68,11 +73,15 @@ class PanTiltNode:
         self.model = self.pointing.model
         self._lock = threading.Lock()
         self._state: JointState | None = None
+        self._arrived = threading.Condition(self._lock)
+        self._during_move: deque[JointState] | None = None  # every state while a move runs
         self._busy = threading.Lock()
         self.faults = FaultWatch()
         self._pan = rospy.Publisher(PAN_COMMAND, Float64, queue_size=10)
         self._tilt = rospy.Publisher(TILT_COMMAND, Float64, queue_size=10)
-        rospy.Subscriber("/joint_states", JointState, self._on_joint_state, queue_size=1)
+        rospy.Subscriber(
+            "/joint_states", JointState, self._on_joint_state, queue_size=EVERY_MESSAGE
+        )
         self.joints_server = actionlib.SimpleActionServer(
             "PanTiltMoveJoints", PanTiltMoveJointsAction, self._on_joints, auto_start=False
         )
@@ -85,6 +94,25 @@ class PanTiltNode:
     def _on_joint_state(self, msg: JointState) -> None:
         with self._lock:
             self._state = msg
+            if self._during_move is not None:
+                self._during_move.append(msg)
+                self._arrived.notify_all()
+
+    def _next_state(self) -> JointState | None:
+        """The oldest joint state of the move not yet watched, waited for up to
+        ``JOINT_STATE_WAIT_S`` of wall time; None if none came."""
+        with self._lock:
+            queue = self._during_move
+            if queue is None or not self._arrived.wait_for(
+                lambda: bool(queue) or rospy.is_shutdown(), JOINT_STATE_WAIT_S
+            ):
+                return None
+            return queue.popleft() if queue else None
+
+    def _q(self, state: JointState) -> np.ndarray:
+        known = set(self.model.joint_names)
+        values = {n: p for n, p in zip(state.name, state.position, strict=False) if n in known}
+        return self.model.q_from(values)
 
     def _configuration(self) -> np.ndarray | None:
         """(9,) rad, the latest joint state by name (waits a little for a first one)."""
@@ -94,11 +122,7 @@ class PanTiltNode:
             with self._lock:
                 state = self._state
             if state is not None:
-                known = set(self.model.joint_names)
-                values = {
-                    n: p for n, p in zip(state.name, state.position, strict=False) if n in known
-                }
-                return self.model.q_from(values)
+                return self._q(state)
             if rospy.get_rostime().to_sec() > deadline or rospy.is_shutdown():
                 return None
             rate.sleep()
@@ -142,8 +166,12 @@ class PanTiltNode:
             server.set_aborted(result(0.0, 0.0), "another pan/tilt goal is running")
             return
         try:
+            with self._lock:
+                self._during_move = deque()
             self._move(server, target, result, feedback)
         finally:
+            with self._lock:
+                self._during_move = None
             self._busy.release()
 
     def _move(
@@ -168,11 +196,23 @@ class PanTiltNode:
             server.set_aborted(result(*self._antenna(q)), f"goal refused: {refused}")
             return
         self._command(*goal)
-        deadline = rospy.get_rostime().to_sec() + MOVE_TIMEOUT_S
-        rate = rospy.Rate(FEEDBACK_HZ)
+        deadline: float | None = None
+        next_feedback = -np.inf
         while not rospy.is_shutdown():
-            q = self._configuration()
-            pan, tilt = self._antenna(q) if q is not None else (np.nan, np.nan)
+            state = self._next_state()
+            if state is None:
+                if rospy.is_shutdown():
+                    break
+                pan, tilt = self._antenna(q)
+                self._command(pan, tilt)
+                text = f"no /joint_states for {JOINT_STATE_WAIT_S:.0f} s (wall): stopped"
+                server.set_aborted(result(pan, tilt), text)
+                return
+            stamp = state.header.stamp.to_sec()
+            if deadline is None:
+                deadline = stamp + MOVE_TIMEOUT_S
+            q = self._q(state)
+            pan, tilt = self._antenna(q)
             fault = self.faults.now().pan_tilt_error()
             if fault is not None:
                 self._command(pan, tilt)
@@ -185,14 +225,16 @@ class PanTiltNode:
                     result(pan, tilt), f"stopped at pan {pan:.3f}, tilt {tilt:.3f} rad"
                 )
                 return
-            feedback(pan, tilt)
+            if stamp >= next_feedback:
+                feedback(pan, tilt)
+                next_feedback = stamp + 1.0 / FEEDBACK_HZ - 1e-9
             if reached(pan, tilt, goal):
                 text = f"reached pan {pan:.3f}, tilt {tilt:.3f} rad"
                 server.set_succeeded(
                     result(pan, tilt), f"{text} (goal {goal[0]:.3f}, {goal[1]:.3f})"
                 )
                 return
-            if rospy.get_rostime().to_sec() > deadline:
+            if stamp > deadline:
                 self._command(pan, tilt)
                 text = (
                     f"pan/tilt did not reach ({goal[0]:.3f}, {goal[1]:.3f}) rad within "
@@ -200,10 +242,6 @@ class PanTiltNode:
                 )
                 server.set_aborted(result(pan, tilt), text)
                 return
-            try:
-                rate.sleep()
-            except rospy.ROSInterruptException:
-                break
         server.set_aborted(result(np.nan, np.nan), "shutting down")
 
     def _command(self, pan: float, tilt: float) -> None:

@@ -14,9 +14,8 @@ import owl_msgs.msg
 from ow_lander.conversions import fill_fields
 from ow_mission.action_steps import StepResponse, action_goal, step_response
 
-#: s of wall time after a new client found its server: actionlib's wait_for_server does not
-#: wait for the server's result topic to reach the client, whose first result may be lost.
-CONNECT_WAIT_S = 0.5
+#: s of wall time between checks that a new client's result subscription is connected.
+_POLL_S = 0.01
 
 
 class ActionStepClient:
@@ -45,7 +44,7 @@ class ActionStepClient:
             client = actionlib.SimpleActionClient(action, getattr(owl_msgs.msg, f"{action}Action"))
             if not client.wait_for_server(rospy.Duration(timeout_s)):
                 raise TimeoutError
-            time.sleep(CONNECT_WAIT_S)
+            _wait_result_connection(client, timeout_s)
             self._clients[action] = client
         client.send_goal(fill_fields(getattr(owl_msgs.msg, f"{action}Goal")(), goal))
         if not client.wait_for_result(rospy.Duration(timeout_s)):
@@ -53,3 +52,17 @@ class ActionStepClient:
             raise TimeoutError
         succeeded = client.get_state() == GoalStatus.SUCCEEDED
         return step_response(action, succeeded, client.get_goal_status_text(), client.get_result())
+
+
+def _wait_result_connection(client: actionlib.SimpleActionClient, timeout_s: float) -> None:
+    """Wait until the client's result subscription is connected: actionlib's wait_for_server does
+    not, and a result the server sends before then is lost (the goal never ends here).
+
+    Raises:
+        TimeoutError: not within ``timeout_s`` s of wall time.
+    """
+    deadline = time.monotonic() + timeout_s
+    while client.action_client.result_sub.get_num_connections() == 0:
+        if time.monotonic() > deadline:
+            raise TimeoutError
+        time.sleep(_POLL_S)

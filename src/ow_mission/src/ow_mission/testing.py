@@ -182,6 +182,25 @@ def subscribe(topic: str, data_class: type, callback: Callable[..., Any], **kwar
     return rospy.Subscriber(topic, data_class, callback, queue_size=EVERY_MESSAGE, **kwargs)
 
 
+def action_client(name: str, action: type, timeout_s: float = 30.0) -> Any:
+    """A new ``actionlib.SimpleActionClient`` of action ``name`` once its server and the
+    client's result and feedback subscriptions are connected: ``wait_for_server`` only checks the
+    goal and cancel publishers and one status message, and a result the server sends before the
+    result subscription is connected is lost (the goal never ends for the client).
+
+    Raises:
+        AssertionError: no server, or no connection, within ``timeout_s`` (wall) each.
+    """
+    import actionlib
+    import rospy
+
+    client = actionlib.SimpleActionClient(name, action)
+    assert client.wait_for_server(rospy.Duration(timeout_s)), f"no {name} action server"
+    for sub in (client.action_client.result_sub, client.action_client.feedback_sub):
+        wait_connected(sub, timeout_s)
+    return client
+
+
 def wait_connected(endpoint: Any, timeout_s: float = 10.0) -> Any:
     """Wait (wall time) until a rospy Publisher or Subscriber has a connection and return it:
     a message published, or one published to a subscriber, before then is lost.
