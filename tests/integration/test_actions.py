@@ -57,9 +57,16 @@ class JointLog:
             time.sleep(0.01)
 
 
+def forget_clients() -> None:
+    """Drop the clients and feedback recorders of another module's servers (their subscriptions
+    end with that module's stack)."""
+    client.cache_clear()
+    feedback_stamps.cache_clear()
+
+
 @pytest.fixture(scope="module")
 def stack(start_lander):
-    client.cache_clear()  # the clients of another module's servers
+    forget_clients()
     return start_lander(sim_topics=["/joint_states", "/arm_end_effector_force_torque"])
 
 

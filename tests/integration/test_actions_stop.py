@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import rospy
 from actionlib_msgs.msg import GoalStatus
-from test_actions import JointLog, client, run
+from test_actions import JointLog, client, forget_clients, run
 
 import owl_msgs.msg as owl
 from ow_msgs.srv import Unstow
@@ -19,7 +19,7 @@ from ow_msgs.srv import Unstow
 
 @pytest.fixture(scope="module")
 def stack(start_lander):
-    client.cache_clear()  # the clients of another module's servers
+    forget_clients()
     return start_lander(sim={"real_time_factor": 1.0})
 
 

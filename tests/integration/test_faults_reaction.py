@@ -22,7 +22,7 @@ from dynamic_reconfigure.client import Client
 from geometry_msgs.msg import Point, Vector3
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
-from test_actions import JointLog, client, run
+from test_actions import JointLog, client, forget_clients, run
 from test_faults_injection import Latest
 
 import owl_msgs.msg as owl
@@ -52,7 +52,7 @@ NO_FAULTS = {
 
 @pytest.fixture(scope="module")
 def stack(ros_stack, start_lander):
-    client.cache_clear()  # the clients of another module's servers
+    forget_clients()
     ros_stack.start_node("ow_faults", "faults", wait_for_services=["/faults/set_parameters"])
     ros_stack.start_node("ow_faults", "detector", wait_for_topics=["/system_faults_status"])
     start_lander(sim_topics=["/joint_states", "/arm_end_effector_force_torque"])
@@ -129,9 +129,14 @@ def test_lock_half_way_through_a_grind_stops_the_arm_and_fails_naming_the_joint(
     try:
         assert in_trench.wait(300), "the grinder never went into the ground"
         watch.unregister()
-        inject(stack, shou_pitch_joint_locked_failure=True)
-        flag = stack.flags.wait_for(lambda m: any(m.flags), "the lock's flag")
-        t_lock = flag.header.stamp.to_sec()
+        flags = []
+        inject_paused(
+            stack,
+            lambda what: flags.append(stack.flags.wait_for(lambda m: any(m.flags), what)),
+            "the lock's flag",
+            shou_pitch_joint_locked_failure=True,
+        )
+        t_lock = flags[0].header.stamp.to_sec()
         assert grind.wait_for_result(rospy.Duration(120)), "TaskGrind did not end"
         text = grind.get_goal_status_text()
         assert grind.get_state() == GoalStatus.ABORTED, text

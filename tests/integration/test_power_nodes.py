@@ -30,7 +30,7 @@ def _wait(condition, what, timeout_s=20.0):
     deadline = time.monotonic() + timeout_s
     while not condition():
         if time.monotonic() > deadline:
-            pytest.fail(f"timed out waiting for {what}")
+            pytest.fail(f"timed out waiting for {what() if callable(what) else what}")
         time.sleep(0.02)
 
 
@@ -169,7 +169,10 @@ def test_sigint_leaves_a_complete_bag_that_ros_tools_and_the_analysis_read(ros_s
             feeder.marker(stamp, 1, Operation.START)
         if k == 150:
             feeder.marker(stamp, 1, Operation.END)
-    _wait(lambda: status.latest.get("messages") == 2 * n + 2, f"{2 * n + 2} recorded messages")
+    _wait(
+        lambda: status.latest.get("messages") == 2 * n + 2,
+        lambda: f"{2 * n + 2} recorded messages (status: {status.latest})",
+    )
     recorder.signal(signal.SIGINT)
     assert recorder.proc.wait(timeout=20) == 0
     bags = sorted(tmp_path.glob("*.bag"))

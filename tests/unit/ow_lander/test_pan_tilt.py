@@ -13,6 +13,7 @@ from ow_lander.pan_tilt import (
     PAN_LIMIT_RAD,
     TILT_LIMIT_RAD,
     AntennaPointing,
+    MoveWatch,
     check_joints_goal,
     reached,
 )
@@ -121,3 +122,28 @@ def test_points_the_mast_cannot_look_at_are_refused_with_the_reason(mast):
         mast.look_at(mast.tilt_origin + np.array([0.2, 0.0, 0.1]))
     with pytest.raises(GoalError, match=r"needs tilt = 1\.\d+ rad, outside the limits \[-1\.56"):
         mast.look_at(mast.tilt_origin + np.array([0.0, 0.0, -5.0]))  # straight down
+
+
+def test_move_watch_gives_feedback_every_period_of_stamps_whatever_the_sample_spacing():
+    dense = MoveWatch((1.0, 0.0), 30.0, 0.05)
+    due = [k * 0.01 for k in range(101) if dense.feedback_due(k * 0.01)]
+    assert len(due) == 21 and due[1] == pytest.approx(0.05)  # 0, 0.05, ..., 1.0
+    sparse = MoveWatch((1.0, 0.0), 30.0, 0.05)
+    assert all(sparse.feedback_due(k * 0.2) for k in range(6))  # each sample late: each due
+
+
+def test_move_watch_ends_on_arrival_cancel_fault_or_the_timeout_by_stamps():
+    watch = MoveWatch((1.0, 0.5), 30.0, 0.05)
+    assert watch.end(10.0, 0.0, 0.0, None, preempted=False) is None
+    assert watch.end(39.99, 0.5, 0.5, None, preempted=False) is None  # 29.99 s of stamps
+    timeout = watch.end(40.01, 0.5, 0.5, None, preempted=False)
+    assert timeout.outcome == "aborted" and timeout.hold
+    assert "did not reach (1.000, 0.500) rad within 30 s: stopped at pan 0.500" in timeout.text
+    arrived = watch.end(11.0, 0.96, 0.53, None, preempted=False)
+    assert arrived.outcome == "succeeded" and not arrived.hold
+    assert arrived.text == "reached pan 0.960, tilt 0.530 rad (goal 1.000, 0.500)"
+    cancelled = watch.end(11.0, 0.96, 0.53, None, preempted=True)  # a cancel before arrival
+    assert (cancelled.outcome, cancelled.hold) == ("preempted", True)
+    fault = "pan/tilt execution error: j_ant_pan locked (PAN_JOINT_LOCKED)"
+    faulted = watch.end(11.0, 0.96, 0.53, fault, preempted=True)  # a fault before anything
+    assert faulted.outcome == "aborted" and faulted.text.startswith(fault)

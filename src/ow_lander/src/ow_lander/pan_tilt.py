@@ -80,6 +80,75 @@ def reached(pan: float, tilt: float, goal: tuple[float, float]) -> bool:
     return abs(pan - goal[0]) <= TOLERANCE_RAD and abs(tilt - goal[1]) <= TOLERANCE_RAD
 
 
+@dataclass(frozen=True)
+class MoveEnd:
+    """How a pan/tilt move ends.
+
+    Attributes:
+        outcome: "succeeded", "aborted" or "preempted".
+        text: the goal's status text.
+        hold: command the mast to hold where it is (not at the goal).
+    """
+
+    outcome: str
+    text: str
+    hold: bool
+
+
+class MoveWatch:
+    """Watches one pan/tilt move on every joint state, in order, by the states' stamps (s, sim):
+    a fault, a cancel, arrival within :data:`TOLERANCE_RAD`, then the timeout; feedback every
+    ``feedback_period_s`` of stamps. The same joint states give the same decisions whatever the
+    machine's load.
+
+    Args:
+        goal: rad, (pan, tilt).
+        timeout_s: s of stamps from the first joint state after which the move is aborted.
+        feedback_period_s: s of stamps between feedback messages.
+    """
+
+    def __init__(
+        self, goal: tuple[float, float], timeout_s: float, feedback_period_s: float
+    ) -> None:
+        self.goal = goal
+        self.timeout_s = timeout_s
+        self.feedback_period_s = feedback_period_s
+        self._deadline: float | None = None
+        self._next_feedback = -math.inf
+
+    def feedback_due(self, stamp: float) -> bool:
+        """Whether feedback is due at this joint state (then the next is one period later)."""
+        if stamp < self._next_feedback:
+            return False
+        self._next_feedback = stamp + self.feedback_period_s - 1e-9
+        return True
+
+    def end(
+        self, stamp: float, pan: float, tilt: float, fault: str | None, preempted: bool
+    ) -> MoveEnd | None:
+        """The move's end at the joint state ``stamp`` (pan, tilt rad), or None while it goes
+        on. ``fault``: a pan/tilt execution error standing; ``preempted``: a cancel came."""
+        if self._deadline is None:
+            self._deadline = stamp + self.timeout_s
+        where = f"stopped at pan {pan:.3f}, tilt {tilt:.3f} rad"
+        if fault is not None:
+            return MoveEnd("aborted", f"{fault}: {where}", hold=True)
+        if preempted:
+            return MoveEnd("preempted", where, hold=True)
+        if reached(pan, tilt, self.goal):
+            text = f"reached pan {pan:.3f}, tilt {tilt:.3f} rad"
+            return MoveEnd(
+                "succeeded", f"{text} (goal {self.goal[0]:.3f}, {self.goal[1]:.3f})", hold=False
+            )
+        if stamp > self._deadline:
+            text = (
+                f"pan/tilt did not reach ({self.goal[0]:.3f}, {self.goal[1]:.3f}) rad within "
+                f"{self.timeout_s:.0f} s: {where}"
+            )
+            return MoveEnd("aborted", text, hold=True)
+        return None
+
+
 def _wrap(angle: float) -> float:
     """``angle`` (rad) in [-pi, pi)."""
     return (angle + math.pi) % (2 * math.pi) - math.pi

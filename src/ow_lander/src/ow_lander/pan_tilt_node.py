@@ -17,7 +17,7 @@ from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.description import ANTENNA_JOINTS
 from ow_lander.errors import GoalError
 from ow_lander.faults_watch_node import FaultWatch
-from ow_lander.pan_tilt import AntennaPointing, check_joints_goal, reached
+from ow_lander.pan_tilt import AntennaPointing, MoveWatch, check_joints_goal
 from owl_msgs.msg import (
     PanTiltMoveCartesianAction,
     PanTiltMoveCartesianResult,
@@ -196,52 +196,36 @@ class PanTiltNode:
             server.set_aborted(result(*self._antenna(q)), f"goal refused: {refused}")
             return
         self._command(*goal)
-        deadline: float | None = None
-        next_feedback = -np.inf
+        watch = MoveWatch(goal, MOVE_TIMEOUT_S, 1.0 / FEEDBACK_HZ)
         while not rospy.is_shutdown():
             state = self._next_state()
             if state is None:
                 if rospy.is_shutdown():
                     break
-                pan, tilt = self._antenna(q)
-                self._command(pan, tilt)
+                self._command(*self._antenna(q))
                 text = f"no /joint_states for {JOINT_STATE_WAIT_S:.0f} s (wall): stopped"
-                server.set_aborted(result(pan, tilt), text)
+                server.set_aborted(result(*self._antenna(q)), text)
                 return
             stamp = state.header.stamp.to_sec()
-            if deadline is None:
-                deadline = stamp + MOVE_TIMEOUT_S
             q = self._q(state)
             pan, tilt = self._antenna(q)
             fault = self.faults.now().pan_tilt_error()
-            if fault is not None:
+            end = watch.end(stamp, pan, tilt, fault, server.is_preempt_requested())
+            if end is None:
+                if watch.feedback_due(stamp):
+                    feedback(pan, tilt)
+                continue
+            if end.hold:
                 self._command(pan, tilt)
-                text = f"{fault}: stopped at pan {pan:.3f}, tilt {tilt:.3f} rad"
-                server.set_aborted(result(pan, tilt), text)
-                return
-            if server.is_preempt_requested():
-                self._command(pan, tilt)
-                server.set_preempted(
-                    result(pan, tilt), f"stopped at pan {pan:.3f}, tilt {tilt:.3f} rad"
-                )
-                return
-            if stamp >= next_feedback:
+            else:
                 feedback(pan, tilt)
-                next_feedback = stamp + 1.0 / FEEDBACK_HZ - 1e-9
-            if reached(pan, tilt, goal):
-                text = f"reached pan {pan:.3f}, tilt {tilt:.3f} rad"
-                server.set_succeeded(
-                    result(pan, tilt), f"{text} (goal {goal[0]:.3f}, {goal[1]:.3f})"
-                )
-                return
-            if stamp > deadline:
-                self._command(pan, tilt)
-                text = (
-                    f"pan/tilt did not reach ({goal[0]:.3f}, {goal[1]:.3f}) rad within "
-                    f"{MOVE_TIMEOUT_S:.0f} s: stopped at pan {pan:.3f}, tilt {tilt:.3f} rad"
-                )
-                server.set_aborted(result(pan, tilt), text)
-                return
+            finish = {
+                "succeeded": server.set_succeeded,
+                "preempted": server.set_preempted,
+                "aborted": server.set_aborted,
+            }[end.outcome]
+            finish(result(pan, tilt), end.text)
+            return
         server.set_aborted(result(np.nan, np.nan), "shutting down")
 
     def _command(self, pan: float, tilt: float) -> None:

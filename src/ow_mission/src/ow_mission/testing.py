@@ -66,6 +66,9 @@ __all__ = [
 
 #: The terrain the lander starts on unless a test asks for another.
 FLAT = f"flat:{DEFAULT_GROUND_Z}"
+#: The subscribers :func:`subscribe` made; each module's stack unregisters them when it ends, so
+#: no recorder of an earlier module runs on a later module's messages (one master per process).
+_SUBSCRIBERS: list[Any] = []
 
 
 @pytest.fixture(scope="session")
@@ -95,6 +98,8 @@ def ros_stack(ros_master: RosMaster) -> Iterator[RosStack]:
         yield stack
     finally:
         stack.shutdown()
+        while _SUBSCRIBERS:
+            _SUBSCRIBERS.pop().unregister()
 
 
 @pytest.fixture(scope="module")
@@ -173,13 +178,16 @@ def subscribe(topic: str, data_class: type, callback: Callable[..., Any], **kwar
     any subscriber of that topic in the process wins (None leaves it as it was); a queue of n
     keeps only the newest n messages of each socket read, so a recorder lagging a fast
     simulation loses samples. Every subscriber of the test process is made here, unbounded
-    (:data:`ow_lander.conversions.EVERY_MESSAGE`), so none of them limits another.
+    (:data:`ow_lander.conversions.EVERY_MESSAGE`), so none of them limits another. It is
+    unregistered when the test module's stack ends, if the test has not done so.
     """
     import rospy
 
     from ow_lander.conversions import EVERY_MESSAGE
 
-    return rospy.Subscriber(topic, data_class, callback, queue_size=EVERY_MESSAGE, **kwargs)
+    subscriber = rospy.Subscriber(topic, data_class, callback, queue_size=EVERY_MESSAGE, **kwargs)
+    _SUBSCRIBERS.append(subscriber)
+    return subscriber
 
 
 def action_client(name: str, action: type, timeout_s: float = 30.0) -> Any:
