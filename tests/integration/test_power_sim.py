@@ -22,7 +22,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ow_lander.description import DEFAULT_GROUND_Z, UNSTOWED
 from ow_lander.model import LanderModel
-from ow_mission.testing import subscribe
+from ow_mission.testing import subscribe, wait_connected
 from ow_msgs.msg import GuardedMoveResult, Power
 from ow_msgs.srv import GuardedMove, Unstow
 from ow_power.energy import ArmEnergyModel
@@ -57,8 +57,9 @@ class Trace:
         self.joint_states: dict[int, JointState] = {}
         self.damping: dict[int, JointState] = {}
         self.power: dict[int, Power] = {}
+        # Connected before the test goes on: the simulation runs on meanwhile.
         self._subs = [
-            subscribe(topic, cls, self._store(store))
+            wait_connected(subscribe(topic, cls, self._store(store)))
             for topic, cls, store in (
                 ("/joint_states", JointState, self.joint_states),
                 ("/sim/joint_damping", JointState, self.damping),

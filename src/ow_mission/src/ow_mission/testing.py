@@ -69,6 +69,8 @@ FLAT = f"flat:{DEFAULT_GROUND_Z}"
 #: The subscribers :func:`subscribe` made; each module's stack unregisters them when it ends, so
 #: no recorder of an earlier module runs on a later module's messages (one master per process).
 _SUBSCRIBERS: list[Any] = []
+#: s of wall time :func:`subscribe` waits for its connections.
+SUBSCRIBE_WAIT_S = 5.0
 
 
 @pytest.fixture(scope="session")
@@ -180,13 +182,25 @@ def subscribe(topic: str, data_class: type, callback: Callable[..., Any], **kwar
     simulation loses samples. Every subscriber of the test process is made here, unbounded
     (:data:`ow_lander.conversions.EVERY_MESSAGE`), so none of them limits another. It is
     unregistered when the test module's stack ends, if the test has not done so.
+
+    It returns once connected to every publisher the master lists for ``topic`` (at most
+    ``SUBSCRIBE_WAIT_S`` of wall time: a node killed without unregistering stays listed), so
+    the test records from the simulation time it goes on at, not from whenever the connection
+    happens to come up while the simulation runs on.
     """
+    import rosgraph
     import rospy
 
     from ow_lander.conversions import EVERY_MESSAGE
 
     subscriber = rospy.Subscriber(topic, data_class, callback, queue_size=EVERY_MESSAGE, **kwargs)
     _SUBSCRIBERS.append(subscriber)
+    publishers, _, _ = rosgraph.Master(rospy.get_name()).getSystemState()
+    resolved = subscriber.resolved_name
+    listed = next((len(nodes) for name, nodes in publishers if name == resolved), 0)
+    deadline = time.monotonic() + SUBSCRIBE_WAIT_S
+    while subscriber.get_num_connections() < listed and time.monotonic() < deadline:
+        time.sleep(0.01)
     return subscriber
 
 
