@@ -367,3 +367,30 @@ def test_unreachable_goal_is_aborted_and_the_next_works(stack, joints, name, goa
     assert np.allclose(joints.latest(), before, atol=0.01)
     state, _, text = run("ArmUnstow", owl.ArmUnstowGoal())
     assert state == GoalStatus.SUCCEEDED, text
+
+
+def test_a_clock_the_user_stopped_stays_stopped_while_a_goal_is_delivered(stack, joints):
+    """The arm services pause the clock around delivering a trajectory and resume it only if
+    they stopped it: a user, a test or a mission stepping the simulation keeps control of it."""
+    stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
+    goal, target = _long_move(joints)
+    c = client("ArmMoveJoints")
+    receipts: list[Header] = []
+    sub = subscribe("/sim/trajectory_received", Header, receipts.append)
+    assert stack.service("/sim/pause", Trigger)().success
+    try:
+        c.send_goal(goal)
+        deadline = time.monotonic() + 60
+        while not receipts and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert receipts, "no trajectory delivered"
+        stopped_at = rospy.get_rostime()
+        time.sleep(0.5)  # wall: the clock would have run on had the arm services resumed it
+        assert rospy.get_rostime() == stopped_at == receipts[-1].stamp
+        assert c.get_state() == GoalStatus.ACTIVE
+    finally:
+        sub.unregister()
+        assert stack.service("/sim/resume", Trigger)().success
+    assert c.wait_for_result(rospy.Duration(120))
+    assert c.get_state() == GoalStatus.SUCCEEDED, c.get_goal_status_text()
+    assert np.allclose(joints.latest(), target, atol=0.05)

@@ -38,6 +38,8 @@ GROUND = DEFAULT_GROUND_Z
 STOP_WITHIN_S = 0.5
 #: rad/s, an arm joint slower than this is at rest.
 REST_SPEED = 0.01
+#: s, the simulation's default physics step.
+PHYSICS_STEP_S = 0.01
 #: s of wall time the reacting nodes get, the clock stopped, to receive an injected fault.
 REACT_WALL_S = 1.0
 NO_FAULTS = {
@@ -63,6 +65,7 @@ def stack(ros_stack, start_lander):
     ros_stack.pan_tilt = Latest("/pan_tilt_faults_status", PanTiltFaultsStatus)
     ros_stack.system = Latest("/system_faults_status", SystemFaultsStatus)
     ros_stack.joints = JointLog()
+    ros_stack.latest_joints = Latest("/joint_states", JointState)
     return ros_stack
 
 
@@ -86,6 +89,26 @@ def inject_paused(stack, seen, what: str, **changes) -> None:
         time.sleep(REACT_WALL_S)
     finally:
         assert resume().success
+
+
+def step_until(stack, done, what: str, chunk: int = 5, max_steps: int = 30000) -> None:
+    """With the clock stopped, step the simulation ``chunk`` physics steps at a time until
+    ``done()``, each time waiting until this test's /joint_states has reached the new sim time
+    (the nodes under test get them as fast): the test acts at a simulation time of its choosing
+    (to a few chunks) whatever the machine's load."""
+    step = stack.service("/sim/step", StepSimulation)
+    for _ in range(max_steps // chunk):
+        response = step(steps=chunk)
+        assert response.success, response.message
+        reached = response.sim_time - PHYSICS_STEP_S - 1e-6  # a sample is its step's start
+        latest = stack.latest_joints
+        latest.wait_for(
+            lambda m, t=reached: m.header.stamp.to_sec() >= t,
+            f"a joint state at {reached:.3f} s (newest: {latest.msg and latest.msg.header.stamp})",
+        )
+        if done():
+            return
+    pytest.fail(f"{what} not within {max_steps} steps")
 
 
 def clear_faults(stack) -> None:
@@ -227,12 +250,12 @@ def test_ft_zero_signal_during_find_surface_never_gives_a_surface(stack, continu
         frame=0, relative=False, position=Point(1.7, 0.0, GROUND), normal=Vector3(0, 0, -1),
         distance=0.2, overdrive=0.05, force_threshold=10.0, torque_threshold=10.0,
     )  # fmt: skip
+    # The clock stands still but for the test's steps until the fault: the scoop is 12 cm
+    # above the ground then, however loaded the machine (a free-running sim reached it first).
+    assert stack.service("/sim/pause", Trigger)().success
     find.send_goal(goal, feedback_cb=on_feedback)
     try:
-        deadline = time.monotonic() + 300
-        while not descending and time.monotonic() < deadline:
-            time.sleep(0.005)
-        assert descending, "the scoop never came down towards the surface"
+        step_until(stack, lambda: bool(descending), "the scoop coming down towards the surface")
         inject_paused(
             stack,
             lambda what: stack.arm.wait_for(
@@ -264,15 +287,12 @@ def test_locked_antenna_fails_pan_tilt_goals(stack):
         # is half-way whatever the machine's load (a free-running sim finished the move).
         assert stack.service("/sim/pause", Trigger)().success
         pan_tilt.send_goal(owl.PanTiltMoveJointsGoal(2.5, 0.0))
-        mast = Latest("/joint_states", JointState)
-        step = stack.service("/sim/step", StepSimulation)
-        for _ in range(200):
-            assert step(steps=5).success
-            msg = mast.wait_for(lambda m: True, "joint states")
-            if msg.position[msg.name.index("j_ant_pan")] > 1.0:
-                break
-        else:
-            pytest.fail("the mast did not start moving")
+
+        def half_way() -> bool:
+            msg = stack.latest_joints.msg
+            return msg.position[msg.name.index("j_ant_pan")] > 1.0
+
+        step_until(stack, half_way, "the mast half-way")
         inject_paused(
             stack,
             lambda what: stack.pan_tilt.wait_for(

@@ -163,7 +163,8 @@ class ArmExecutor(ArmObserver):
         delivered, so the arm starts braking at once in simulation time at any speed. A
         ``fault`` (its message) makes the execution fail with it, braking from ``stamp`` (s sim,
         when the fault arose; default: the newest joint state)."""
-        paused = self._sim_clock.call("pause")
+        paused_here = self._sim_clock.pause()
+        paused = paused_here is not None
         try:
             if paused and self._monitor is not None:
                 # The newest joint state is then the paused simulation's: the arm brakes there.
@@ -180,8 +181,8 @@ class ArmExecutor(ArmObserver):
             if paused:
                 time.sleep(self.config.delivery_wait_s)
         finally:
-            if paused:
-                self._sim_clock.call("resume")
+            if paused_here:
+                self._sim_clock.resume()
         if monitor is not None:
             self._stopped.wait(timeout=self.config.joint_state_timeout_s)
         return monitor is not None
@@ -197,10 +198,10 @@ class ArmExecutor(ArmObserver):
 
         A simulation running many times faster than real time could pass the start time before
         the message arrives, so its clock is paused while the message is delivered (when it
-        offers ``/sim/pause`` and ``/sim/resume``). A simulation that sends receipts starts the
-        trajectory when it queues it, clock stopped, and its receipt says when: the start is
-        then exact whatever the machine's load. Otherwise the start is ``start_delay_s`` after
-        the newest joint state.
+        offers ``/sim/pause`` and ``/sim/resume``), and resumed only if it was running. A
+        simulation that sends receipts starts the trajectory when it queues it, clock stopped,
+        and its receipt says when: the start is then exact whatever the machine's load.
+        Otherwise the start is ``start_delay_s`` after the newest joint state.
 
         Raises:
             TrajectoryDeliveryError: the simulation does not subscribe to the trajectory topic,
@@ -216,7 +217,8 @@ class ArmExecutor(ArmObserver):
                 )
                 raise TrajectoryDeliveryError(msg)
             time.sleep(0.01)
-        paused = self._sim_clock.call("pause")
+        paused_here = self._sim_clock.pause()
+        paused = paused_here is not None
         try:
             if paused and self._sim_clock.sends_receipts():
                 token = self._sim_clock.new_token()
@@ -231,8 +233,8 @@ class ArmExecutor(ArmObserver):
                 time.sleep(cfg.delivery_wait_s)  # no receipts: time for the delivery
             return t_start
         finally:
-            if paused:
-                self._sim_clock.call("resume")
+            if paused_here:
+                self._sim_clock.resume()
 
     def _wait_quiet(self, quiet_s: float, limit_s: float = 1.0) -> None:
         """Wait until no new /joint_states has arrived for ``quiet_s`` (wall): the newest one then

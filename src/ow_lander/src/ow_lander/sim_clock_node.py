@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import threading
 import time
+from typing import Any
 
 import rospy
 from std_msgs.msg import Header
@@ -11,6 +12,8 @@ from std_srvs.srv import Trigger
 
 #: frame_id prefix of the receipt of a trajectory the simulation ignored.
 REFUSED = "refused:"
+#: ``/sim/pause``'s message when the clock was stopped already (ow_sim_bullet's sim node).
+ALREADY_PAUSED = "already paused"
 
 
 class TrajectoryDeliveryError(Exception):
@@ -18,7 +21,8 @@ class TrajectoryDeliveryError(Exception):
 
 
 class SimClock:
-    """Pauses and resumes the simulation's clock around a trajectory's delivery.
+    """Pauses and resumes the simulation's clock around a trajectory's delivery; a clock
+    stopped by someone else stays stopped.
 
     Calls: ``/sim/pause``, ``/sim/resume`` (std_srvs/Trigger), when the simulation offers them;
     whether it does is looked up once, within ``service_wait_s`` s of wall time.
@@ -83,18 +87,34 @@ class SimClock:
             raise TrajectoryDeliveryError(msg)
         return start
 
-    def call(self, action: str) -> bool:
-        """Call ``/sim/<action>`` (pause or resume); False when the simulation has none or the
+    def pause(self) -> bool | None:
+        """Stop the simulation's clock (``/sim/pause``). True: this call stopped it (resume it
+        with :meth:`resume` when done); False: it was stopped already (by a user, a test stepping
+        it, or a mission between steps: leave it stopped); None: the simulation offers no
+        pause, or the call failed (logged)."""
+        response = self._call("pause")
+        if response is None:
+            return None
+        return response.message != ALREADY_PAUSED
+
+    def resume(self) -> None:
+        """Restart the simulation's clock (``/sim/resume``), after a :meth:`pause` that
+        returned True."""
+        self._call("resume")
+
+    def _call(self, action: str) -> Any:
+        """Call ``/sim/<action>``; its response, or None when the simulation has none or the
         call failed (logged)."""
         if self._offered is None:
             self._offered = self._offers(("/sim/pause", "/sim/resume"))
         if not self._offered:
-            return False
+            return None
         try:
-            return bool(rospy.ServiceProxy(f"/sim/{action}", Trigger)().success)
+            response = rospy.ServiceProxy(f"/sim/{action}", Trigger)()
         except rospy.ServiceException as error:
             rospy.logwarn("arm_services: /sim/%s failed: %s", action, error)
-            return False
+            return None
+        return response if response.success else None
 
     def _offers(self, services: tuple[str, ...]) -> bool:
         for name in services:
