@@ -394,3 +394,15 @@ def test_a_clock_the_user_stopped_stays_stopped_while_a_goal_is_delivered(stack,
     assert c.wait_for_result(rospy.Duration(120))
     assert c.get_state() == GoalStatus.SUCCEEDED, c.get_goal_status_text()
     assert np.allclose(joints.latest(), target, atol=0.05)
+
+
+def test_goals_rejected_at_once_end_for_the_client_every_time(stack):
+    """actionlib's SimpleActionClient drops a transition that arrives before ``send_goal``
+    returns, and an instant rejection then never ends for it; our ActionClient waits for
+    ``send_goal``: 30 instant rejections in a row all end."""
+    c = connected_client("ArmMoveCartesian")
+    bad = owl.ArmMoveCartesianGoal(2, False, Pose(Point(1.7, 0, 0.2), Quaternion(0, 0, 0, 1)))
+    for attempt in range(30):
+        c.send_goal(bad)
+        assert c.wait_for_result(rospy.Duration(30)), f"goal {attempt} did not end"
+        assert c.get_state() == GoalStatus.REJECTED

@@ -1,6 +1,8 @@
 """Guarded move with the force detector (``execution/ground_detector: force``): contact when the
 wrist force/torque sensor the simulation publishes at j_dist_pitch rises over its threshold."""
 
+import time
+
 import pytest
 import rospy
 
@@ -34,12 +36,17 @@ def test_wrist_sensor_reads_zero_in_free_space(stack):
 
 
 def test_force_detector_finds_the_ground(stack):
-    forces = []
+    readings = []  # (stamp s, |force| squared N^2)
     sub = wait_connected(
         subscribe(
             "/arm_end_effector_force_torque",
             ArmEndEffectorForceTorque,
-            lambda m: forces.append(m.value.force.x**2 + m.value.force.y**2 + m.value.force.z**2),
+            lambda m: readings.append(
+                (
+                    m.header.stamp.to_sec(),
+                    m.value.force.x**2 + m.value.force.y**2 + m.value.force.z**2,
+                )
+            ),
         )
     )
     try:
@@ -47,10 +54,15 @@ def test_force_detector_finds_the_ground(stack):
             use_defaults=False, x=1.7, y=0.0, z=GROUND + 0.2, direction_x=0.0, direction_y=0.0,
             direction_z=1.0, search_distance=0.5,
         )  # fmt: skip
+        # This test's readings may lag the arm services' own: wait until they reach now.
+        now = rospy.get_rostime().to_sec()
+        deadline = time.monotonic() + 20.0
+        while (not readings or readings[-1][0] < now) and time.monotonic() < deadline:
+            time.sleep(0.01)
     finally:
         sub.unregister()
     assert response.success, response.message
     assert response.ground_found
     assert response.ground_position.z == pytest.approx(GROUND, abs=0.005)
     # The sensor saw the contact: at least the 10 N threshold.
-    assert max(forces) ** 0.5 >= 10.0
+    assert max(force for _, force in readings) ** 0.5 >= 10.0

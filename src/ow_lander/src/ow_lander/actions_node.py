@@ -27,6 +27,7 @@ from ow_lander.actions import (
 from ow_lander.errors import OwLanderError
 from ow_lander.execution import ExecutionResult
 from ow_lander.execution_node import ArmExecutor
+from ow_lander.feedback_node import StampedFeedback
 from ow_lander.model import LanderModel
 from ow_lander.operations import Operations
 from ow_lander.trajectory import Trajectory
@@ -99,6 +100,7 @@ class ArmActions:
         )
         for server in self.servers:
             server.start()
+        self._feedback = {s.ns: StampedFeedback(s, FEEDBACK_PERIOD_S) for s in self.servers}
 
     # ------------------------------------------------------------------------------- goals
     def _on_goal(self, name: str, handle: Any) -> None:
@@ -179,7 +181,7 @@ class ArmActions:
         trajectory, path = self.node.plan_to_file(request.operation, parameters, request.notes)
         if self._cancelled.is_set():
             return handle.set_canceled, self._result(name, request), "cancelled before execution"
-        feedback = partial(self._feedback, name, handle, request, [-np.inf])
+        feedback = partial(self._send_feedback, name, handle, request)
         result = executor.execute(trajectory, request.wrench_limits, feedback)
         success, message = self._outcome(name, request, result)
         message = "; ".join([f"{message} ({path.name})", *request.notes])
@@ -229,21 +231,19 @@ class ArmActions:
             values.update(final_force=wrench[0], final_torque=wrench[1])
         return conv.fill_fields(getattr(owl, f"{name}Result")(), values)
 
-    def _feedback(
+    def _send_feedback(
         self,
         name: str,
         handle: Any,
         request: ActionRequest,
-        last: list[float],
         stamp: float,
         joints: dict[str, float],
         force: np.ndarray,
         torque: np.ndarray,
     ) -> None:
         """Publish feedback on a joint state, at most every ``FEEDBACK_PERIOD_S`` (sim)."""
-        msg = getattr(owl, f"{name}Feedback")()
-        if not msg.__slots__ or stamp < last[0] + FEEDBACK_PERIOD_S:
-            return
-        last[0] = stamp
-        state = arm_state(self.node.model, joints, force, torque)
-        handle.publish_feedback(conv.fill_fields(msg, action_values(state, request.surface_point)))
+        msg, feedback = getattr(owl, f"{name}Feedback")(), self._feedback[name]
+        if msg.__slots__ and feedback.due(handle, stamp):
+            state = arm_state(self.node.model, joints, force, torque)
+            values = action_values(state, request.surface_point)
+            feedback.publish(handle, conv.fill_fields(msg, values), stamp)

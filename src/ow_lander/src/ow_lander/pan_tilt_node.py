@@ -17,6 +17,7 @@ from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.description import ANTENNA_JOINTS
 from ow_lander.errors import GoalError
 from ow_lander.faults_watch_node import FaultWatch
+from ow_lander.feedback_node import StampedFeedback
 from ow_lander.pan_tilt import AntennaPointing, MoveWatch, check_joints_goal
 from owl_msgs.msg import (
     PanTiltMoveCartesianAction,
@@ -89,6 +90,7 @@ class PanTiltNode:
             "PanTiltMoveCartesian", PanTiltMoveCartesianAction, self._on_cartesian, auto_start=False
         )
         self.joints_server.start()
+        self._joints_feedback = StampedFeedback(self.joints_server.action_server, 0.0)
         self.cartesian_server.start()
 
     def _on_joint_state(self, msg: JointState) -> None:
@@ -139,8 +141,9 @@ class PanTiltNode:
         def result(pan: float, tilt: float) -> PanTiltMoveJointsResult:
             return PanTiltMoveJointsResult(pan_position=pan, tilt_position=tilt)
 
-        def feedback(pan: float, tilt: float) -> None:
-            server.publish_feedback(PanTiltMoveJointsFeedback(pan_position=pan, tilt_position=tilt))
+        def feedback(pan: float, tilt: float, stamp: float) -> None:
+            msg = PanTiltMoveJointsFeedback(pan_position=pan, tilt_position=tilt)
+            self._joints_feedback.publish(server.current_goal, msg, stamp)
 
         self._run(server, lambda _: check_joints_goal(goal.pan, goal.tilt), result, feedback)
 
@@ -158,7 +161,7 @@ class PanTiltNode:
         server: actionlib.SimpleActionServer,
         target: Callable[[np.ndarray], tuple[float, float]],
         result: Callable[[float, float], Any],
-        feedback: Callable[[float, float], None],
+        feedback: Callable[[float, float, float], None],
     ) -> None:
         """Check the goal, command it and watch the joints until they arrive, a cancel, the
         timeout or a shutdown."""
@@ -179,7 +182,7 @@ class PanTiltNode:
         server: actionlib.SimpleActionServer,
         target: Callable[[np.ndarray], tuple[float, float]],
         result: Callable[[float, float], Any],
-        feedback: Callable[[float, float], None],
+        feedback: Callable[[float, float, float], None],
     ) -> None:
         q = self._configuration()
         if q is None:
@@ -213,12 +216,12 @@ class PanTiltNode:
             end = watch.end(stamp, pan, tilt, fault, server.is_preempt_requested())
             if end is None:
                 if watch.feedback_due(stamp):
-                    feedback(pan, tilt)
+                    feedback(pan, tilt, stamp)
                 continue
             if end.hold:
                 self._command(pan, tilt)
             else:
-                feedback(pan, tilt)
+                feedback(pan, tilt, stamp)
             finish = {
                 "succeeded": server.set_succeeded,
                 "preempted": server.set_preempted,

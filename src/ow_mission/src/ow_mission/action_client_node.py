@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import threading
 import time
 from typing import Any
 
@@ -14,8 +15,59 @@ import owl_msgs.msg
 from ow_lander.conversions import fill_fields
 from ow_mission.action_steps import StepResponse, action_goal, step_response
 
-#: s of wall time between checks that a new client's result subscription is connected.
+#: s of wall time between checks that a new client's subscriptions are connected.
 _POLL_S = 0.01
+
+
+class ActionClient(actionlib.SimpleActionClient):
+    """actionlib's ``SimpleActionClient`` without its lost-end race: it assigns the goal handle
+    only when ``send_goal`` returns, and drops a transition that arrives before ("Got a
+    transition callback on a goal handle that we're not tracking"); a goal the server ends at
+    once (a rejection) then never ends for the client, and ``wait_for_result`` waits forever.
+    Here transitions and feedback wait until ``send_goal`` has returned."""
+
+    def __init__(self, ns: str, action_spec: type) -> None:
+        self._sending = threading.RLock()
+        super().__init__(ns, action_spec)
+
+    def send_goal(
+        self, goal: Any, done_cb: Any = None, active_cb: Any = None, feedback_cb: Any = None
+    ) -> None:
+        with self._sending:
+            super().send_goal(goal, done_cb, active_cb, feedback_cb)
+
+    def _handle_transition(self, gh: Any) -> None:
+        with self._sending:
+            pass
+        super()._handle_transition(gh)
+
+    def _handle_feedback(self, gh: Any, feedback: Any) -> None:
+        with self._sending:
+            pass
+        super()._handle_feedback(gh, feedback)
+
+
+def connect(name: str, action: type, timeout_s: float) -> ActionClient:
+    """An :class:`ActionClient` of action ``name`` once its server and the client's result and
+    feedback subscriptions are connected: ``wait_for_server`` only checks the goal and cancel
+    publishers and one status message, and a result the server sends before the result
+    subscription is connected is lost (the goal never ends for the client).
+
+    Raises:
+        TimeoutError: no server, or no connection, within ``timeout_s`` s of wall time.
+    """
+    client = ActionClient(name, action)
+    deadline = time.monotonic() + timeout_s
+    if not client.wait_for_server(rospy.Duration(timeout_s)):
+        msg = f"no {name} action server in {timeout_s} s"
+        raise TimeoutError(msg)
+    for sub in (client.action_client.result_sub, client.action_client.feedback_sub):
+        while sub.get_num_connections() == 0:
+            if time.monotonic() > deadline:
+                msg = f"{name}: {sub.name} not connected in {timeout_s} s"
+                raise TimeoutError(msg)
+            time.sleep(_POLL_S)
+    return client
 
 
 class ActionStepClient:
@@ -29,7 +81,7 @@ class ActionStepClient:
 
     def __init__(self, dig: str) -> None:
         self.dig = dig
-        self._clients: dict[str, actionlib.SimpleActionClient] = {}
+        self._clients: dict[str, ActionClient] = {}
 
     def call(self, step: str, fields: dict[str, Any], timeout_s: float) -> StepResponse:
         """Run step ``step`` (its service request ``fields``) as a goal and wait for its end.
@@ -41,10 +93,7 @@ class ActionStepClient:
         action, goal = action_goal(step, fields, self.dig)
         client = self._clients.get(action)
         if client is None:
-            client = actionlib.SimpleActionClient(action, getattr(owl_msgs.msg, f"{action}Action"))
-            if not client.wait_for_server(rospy.Duration(timeout_s)):
-                raise TimeoutError
-            _wait_result_connection(client, timeout_s)
+            client = connect(action, getattr(owl_msgs.msg, f"{action}Action"), timeout_s)
             self._clients[action] = client
         client.send_goal(fill_fields(getattr(owl_msgs.msg, f"{action}Goal")(), goal))
         if not client.wait_for_result(rospy.Duration(timeout_s)):
@@ -52,17 +101,3 @@ class ActionStepClient:
             raise TimeoutError
         succeeded = client.get_state() == GoalStatus.SUCCEEDED
         return step_response(action, succeeded, client.get_goal_status_text(), client.get_result())
-
-
-def _wait_result_connection(client: actionlib.SimpleActionClient, timeout_s: float) -> None:
-    """Wait until the client's result subscription is connected: actionlib's wait_for_server does
-    not, and a result the server sends before then is lost (the goal never ends here).
-
-    Raises:
-        TimeoutError: not within ``timeout_s`` s of wall time.
-    """
-    deadline = time.monotonic() + timeout_s
-    while client.action_client.result_sub.get_num_connections() == 0:
-        if time.monotonic() > deadline:
-            raise TimeoutError
-        time.sleep(_POLL_S)

@@ -205,22 +205,18 @@ def subscribe(topic: str, data_class: type, callback: Callable[..., Any], **kwar
 
 
 def action_client(name: str, action: type, timeout_s: float = 30.0) -> Any:
-    """A new ``actionlib.SimpleActionClient`` of action ``name`` once its server and the
-    client's result and feedback subscriptions are connected: ``wait_for_server`` only checks the
-    goal and cancel publishers and one status message, and a result the server sends before the
-    result subscription is connected is lost (the goal never ends for the client).
+    """A connected :class:`ow_mission.action_client_node.ActionClient` of action ``name`` (see
+    :func:`~ow_mission.action_client_node.connect`).
 
     Raises:
-        AssertionError: no server, or no connection, within ``timeout_s`` (wall) each.
+        AssertionError: no server, or no connection, within ``timeout_s`` (wall).
     """
-    import actionlib
-    import rospy
+    from ow_mission.action_client_node import connect
 
-    client = actionlib.SimpleActionClient(name, action)
-    assert client.wait_for_server(rospy.Duration(timeout_s)), f"no {name} action server"
-    for sub in (client.action_client.result_sub, client.action_client.feedback_sub):
-        wait_connected(sub, timeout_s)
-    return client
+    try:
+        return connect(name, action, timeout_s)
+    except TimeoutError as error:
+        raise AssertionError(str(error)) from error
 
 
 def wait_connected(endpoint: Any, timeout_s: float = 10.0) -> Any:
