@@ -133,48 +133,41 @@ def stack(start_lander):
     return stack
 
 
+#: RViz starts at most this often: with software OpenGL under Xvfb it was seen to crash (SIGSEGV)
+#: right after "Forcing OpenGl version 0" about once in ten loaded runs, before drawing anything.
+RVIZ_STARTS = 2
+
+
 @pytest.fixture(scope="module")
 def screenshot(stack, display, tmp_path_factory):
     """The screen once RViz has drawn the lander and the terrain and the picture has settled."""
     directory = tmp_path_factory.mktemp("rviz")
     config = _test_config(directory / "test.rviz")
     env = {**stack.master.env, "DISPLAY": display, "LIBGL_ALWAYS_SOFTWARE": "1"}
-    with (directory / "rviz.log").open("wb") as log:
-        rviz = subprocess.Popen(
-            ["rosrun", "rviz", "rviz", "-d", str(config), "__name:=rviz_test"],
-            env=env,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-        )
     shot = directory / "shot.png"
-    try:
-        deadline = time.monotonic() + SETTLE_TIMEOUT_S
-        previous = None
-        seen = "no screenshot"
-        while True:
-            time.sleep(1.0)
-            if rviz.poll() is not None:
-                tail = (directory / "rviz.log").read_text()[-2000:]
-                pytest.fail(f"rviz exited ({rviz.returncode}): {tail}")
-            subprocess.run(
-                ["import", "-display", display, "-window", "root", str(shot)],
-                check=True,
-                capture_output=True,
-                timeout=30,
+    for start in range(1, RVIZ_STARTS + 1):
+        log_path = directory / f"rviz_{start}.log"
+        with log_path.open("wb") as log:
+            rviz = subprocess.Popen(
+                ["rosrun", "rviz", "rviz", "-d", str(config), "__name:=rviz_test"],
+                env=env,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
             )
-            rgb = _rgb(shot)
-            terrain_px, gold_px = int(_terrain_mask(rgb).sum()), int(_gold_mask(rgb).sum())
-            changed = 1.0 if previous is None else float(np.any(rgb != previous, axis=-1).mean())
-            seen = f"{terrain_px} terrain px, {gold_px} gold px, {changed:.2%} changed"
-            if terrain_px > 1000 and gold_px > 100 and changed <= SETTLED_FRACTION:
-                break
-            previous = rgb
-            if time.monotonic() > deadline:
-                pytest.fail(
-                    f"RViz drew no settled lander and terrain within {SETTLE_TIMEOUT_S} s "
-                    f"(last: {seen}): {shot}"
-                )
+        try:
+            rgb = _settled(rviz, display, shot)
+        except RvizCrashError as crash:
+            tail = log_path.read_text()[-2000:]
+            if start == RVIZ_STARTS or crash.returncode >= 0:
+                pytest.fail(f"rviz exited ({crash.returncode}) at start {start}: {tail}")
+            print(f"rviz crashed ({crash.returncode}) at start {start}, started again: {tail}")
+            continue
+        except BaseException:
+            _stop(rviz)
+            raise
+        break
+    try:
         joints = rospy.wait_for_message("/joint_states", JointState, timeout=10)
         terrain = rospy.wait_for_message("/sim/terrain", HeightMapMsg, timeout=10)
         keep = os.environ.get("OW_VIZ_SCREENSHOT")  # a path to keep the picture at
@@ -182,12 +175,62 @@ def screenshot(stack, display, tmp_path_factory):
             shutil.copy(shot, keep)
         yield rgb, joints, terrain
     finally:
+        _stop(rviz)
+
+
+class RvizCrashError(Exception):
+    """RViz exited before drawing a settled picture."""
+
+    def __init__(self, returncode: int) -> None:
+        super().__init__(f"rviz exited ({returncode})")
+        self.returncode = returncode
+
+
+def _settled(rviz: subprocess.Popen, display: str, shot) -> np.ndarray:
+    """The screenshot once RViz shows the terrain and the lander and the picture has settled.
+
+    Raises:
+        RvizCrashError: RViz exited meanwhile.
+    """
+    deadline = time.monotonic() + SETTLE_TIMEOUT_S
+    previous = None
+    seen = "no screenshot"
+    while True:
+        time.sleep(1.0)
+        if rviz.poll() is not None:
+            raise RvizCrashError(rviz.returncode)
+        subprocess.run(
+            ["import", "-display", display, "-window", "root", str(shot)],
+            check=True,
+            capture_output=True,
+            timeout=30,
+        )
+        rgb = _rgb(shot)
+        terrain_px, gold_px = int(_terrain_mask(rgb).sum()), int(_gold_mask(rgb).sum())
+        changed = 1.0 if previous is None else float(np.any(rgb != previous, axis=-1).mean())
+        seen = f"{terrain_px} terrain px, {gold_px} gold px, {changed:.2%} changed"
+        if terrain_px > 1000 and gold_px > 100 and changed <= SETTLED_FRACTION:
+            return rgb
+        previous = rgb
+        if time.monotonic() > deadline:
+            pytest.fail(
+                f"RViz drew no settled lander and terrain within {SETTLE_TIMEOUT_S} s "
+                f"(last: {seen}): {shot}"
+            )
+
+
+def _stop(rviz: subprocess.Popen) -> None:
+    """Stop RViz (SIGINT, then SIGKILL after 10 s) unless it has exited."""
+    if rviz.poll() is not None:
+        return
+    try:
         os.killpg(rviz.pid, signal.SIGINT)
-        try:
-            rviz.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(rviz.pid, signal.SIGKILL)
-            rviz.wait()
+        rviz.wait(timeout=10)
+    except ProcessLookupError:
+        return
+    except subprocess.TimeoutExpired:
+        os.killpg(rviz.pid, signal.SIGKILL)
+        rviz.wait()
 
 
 def _terrain_square(rgb: np.ndarray) -> tuple[float, float, float, float]:
