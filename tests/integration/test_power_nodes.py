@@ -46,6 +46,19 @@ def _wait_connected(stack, node, topics):
     _wait(connected, f"{node} connected to {topics}")
 
 
+def _wait_sending(stack, node, topic, count):
+    """Wait until ``node`` writes ``topic`` to ``count`` subscribers over open connections: a
+    subscriber connected on its side is added on the publisher's side last, and what is
+    published before then does not reach it."""
+    uri = stack.master.call("lookupNode", node)
+
+    def sending():
+        _, _, info = xmlrpc.client.ServerProxy(uri).getBusInfo("/pytest")
+        return sum(1 for c in info if c[2] == "o" and c[4] == topic and c[5]) >= count
+
+    _wait(sending, f"{node} sending {topic} to {count} subscriber(s)")
+
+
 def _wait_publishing(publisher, subscribers):
     """Wait until our ``publisher`` has its connections too (the publisher side adds them last)."""
     _wait(
@@ -161,6 +174,8 @@ def test_sigint_leaves_a_complete_bag_that_ros_tools_and_the_analysis_read(ros_s
     _wait_connected(
         ros_stack, "/record_sigint", ["/clock", "/power", "/joint_states", "/arm/operation"]
     )
+    _wait_publishing(feeder.joint_states, 2)  # the power node and the recorder
+    _wait_sending(ros_stack, "/power", "/power", 1)
     names = ["j_shou_pitch", "j_prox_pitch"]
     n = 201  # 2 s
     for k in range(n):

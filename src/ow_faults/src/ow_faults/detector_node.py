@@ -106,7 +106,11 @@ class DetectorNode:
     def _on_status(self, action: str, msg: GoalStatusArray) -> None:
         if not msg.status_list or action_group(action) is None:
             return
-        newest = max(msg.status_list, key=lambda s: s.goal_id.stamp.to_sec())
+        # The newest goal: the latest stamp, and of goals stamped alike (sent while the clock
+        # stood still) the last in the list, which the server keeps in order of arrival.
+        _, newest = max(
+            enumerate(msg.status_list), key=lambda item: (item[1].goal_id.stamp, item[0])
+        )
         self._update("on_goal_status", action, newest.goal_id.id, newest.status)
 
     def _update(self, rule: str, *args: Any, stamp: Any = None) -> None:
