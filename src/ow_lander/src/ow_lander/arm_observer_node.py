@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 
 import numpy as np
@@ -46,6 +47,8 @@ class ArmObserver:
         self._joint_stamp = 0.0
         self._tf = tf2_ros.BufferCore(rospy.Duration(30.0))
         self._monitor: ExecutionMonitor | None = None
+        #: every joint state (s sim, rad by name) since the monitor was set, for its decisions
+        self._pending: deque[tuple[float, dict[str, float]]] = deque()
         self._on_sample: SampleCallback | None = None
         self._wrench = (np.zeros(3), np.zeros(3))
         self.signal_pub = rospy.Publisher(
@@ -70,6 +73,7 @@ class ArmObserver:
             self._joint_stamp = msg.header.stamp.to_sec()
             if self._monitor is not None:
                 self._monitor.record_joint_state(self._joint_stamp, self._joints)
+                self._pending.append((self._joint_stamp, dict(self._joints)))
             self._state_changed.notify_all()
             on_sample, joints, (force, torque) = self._on_sample, dict(self._joints), self._wrench
         if on_sample is not None:

@@ -108,6 +108,7 @@ class ArmExecutor(ArmObserver):
                 trajectory, t_start, cfg, self.model, self._joints, wrench_limits
             )
             self._monitor, self._on_sample = monitor, on_sample
+            self._pending.clear()
             self._stopped.clear()
             # A fault that arrived while the trajectory was being delivered.
             fault = self.faults.now().stop_reason(monitor.watches_force)
@@ -129,18 +130,21 @@ class ArmExecutor(ArmObserver):
         return result
 
     def _follow(self, monitor: ExecutionMonitor) -> ExecutionResult:
-        """Give the monitor the newest joint state whenever one arrives (or contact is
-        declared) and carry out its decisions until it says the execution is over."""
-        last = -1.0
+        """Give the monitor every joint state in order, however late this thread wakes up (the
+        same states give the same decisions whatever the load), and carry out its decisions
+        until it says the execution is over."""
         while not rospy.is_shutdown():
 
-            def news(last: float = last) -> bool:
+            def news() -> bool:
                 stop = monitor.stop_time is not None and monitor.braking is None
-                return self._joint_stamp != last or monitor.contact_time is not None or stop
+                return bool(self._pending) or monitor.contact_time is not None or stop
 
             with self._state_changed:
                 arrived = self._state_changed.wait_for(news, self.config.joint_state_timeout_s)
-                stamp, joints = self._joint_stamp, dict(self._joints)
+                if self._pending:
+                    stamp, joints = self._pending.popleft()
+                else:
+                    stamp, joints = self._joint_stamp, dict(self._joints)
                 contact = monitor.contact_time
             if arrived and contact is not None:
                 # The simulation may have run on: the joint states up to the contact first.
@@ -151,7 +155,6 @@ class ArmExecutor(ArmObserver):
                     self._state_changed.wait_for(caught_up, timeout=1.0)
             with self._state_changed:
                 decision = monitor.decide(stamp, joints) if arrived else monitor.stalled()
-            last = stamp
             self._command(decision)
             if decision.result is not None:
                 return decision.result
