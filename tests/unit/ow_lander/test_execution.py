@@ -256,6 +256,20 @@ def test_detectors_watch_only_the_steady_descent(model, planned):
     assert _monitor(model, planned[0]).guard is None
 
 
+def test_decisions_after_the_descent_starts_wait_for_the_guard_stream(model, planned):
+    trajectory = planned[1]
+    first, last = trajectory.steady_span("guarded")
+    monitor = _monitor(model, trajectory)  # velocity detector: the tip from tf
+    assert monitor.guard_stream(T_START + first - 0.01) is None
+    assert monitor.guard_stream(T_START + first) == "tip"
+    assert monitor.guard_stream(T_START + last + 5.0) == "tip"  # "no ground" waits for it too
+    monitor.guard.contact_time = T_START + last
+    assert monitor.guard_stream(T_START + last + 0.01) is None  # contact: nothing to wait for
+    assert _monitor(model, planned[0]).guard_stream(T_START + 1.0) is None  # no guard
+    force = _monitor(model, trajectory, ExecutionConfig(ground_detector="force"))
+    assert force.guard_stream(T_START + first) == "force"
+
+
 def test_streaming_commands_the_setpoint_one_period_ahead(model, planned):
     trajectory = planned[0]
     config = replace(CONFIG.execution, interface="position_controllers", command_rate_hz=10.0)

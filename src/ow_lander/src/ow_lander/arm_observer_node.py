@@ -25,6 +25,8 @@ from owl_msgs.msg import ArmEndEffectorForceTorque
 #: Called with (stamp s sim, joints rad by name, wrist force (3,) N, torque (3,) N m) on every
 #: joint state during an execution (the actions' feedback).
 SampleCallback = Callable[[float, dict[str, float], np.ndarray, np.ndarray], None]
+#: s (sim), a guard's stream has reached a joint state this close (it may run at a lower rate).
+STREAM_SLACK_S = 0.05
 
 
 class ArmObserver:
@@ -49,6 +51,8 @@ class ArmObserver:
         self._monitor: ExecutionMonitor | None = None
         #: every joint state (s sim, rad by name) since the monitor was set, for its decisions
         self._pending: deque[tuple[float, dict[str, float]]] = deque()
+        #: s (sim), the newest stamp of each guard input stream received ("force", "tip")
+        self._stream_stamps = {"force": -1.0, "tip": -1.0}
         self._on_sample: SampleCallback | None = None
         self._wrench = (np.zeros(3), np.zeros(3))
         self.signal_pub = rospy.Publisher(
@@ -88,6 +92,9 @@ class ArmObserver:
             else:
                 self._tf.set_transform(transform, "sim")
                 stamps.add(transform.header.stamp)
+        if stamps:
+            with self._state_changed:
+                self._stream_stamps["tip"] = max(s.to_sec() for s in stamps)
         for stamp in sorted(stamps):
             monitor = self._monitor
             if monitor is None or not monitor.wants_tip(stamp.to_sec()):
@@ -110,11 +117,27 @@ class ArmObserver:
         force, torque = np.array([f.x, f.y, f.z]), np.array([m.x, m.y, m.z])
         with self._state_changed:
             self._wrench = (force, torque)
+            self._stream_stamps["force"] = t
             monitor = self._monitor
             if monitor is not None and monitor.wrist_force(t, force, torque):
                 self._state_changed.notify_all()
         if monitor is not None:
             self._publish_signals(monitor)
+
+    def _wait_joint_stamp(self, until: float) -> None:
+        """Wait (1 s of wall time at most) until a joint state of ``until`` (s, sim) or later
+        has arrived."""
+        with self._state_changed:
+            self._state_changed.wait_for(lambda: self._joint_stamp >= until, 1.0)
+
+    def _wait_stream(self, stream: str | None, stamp: float) -> None:
+        """Wait (holding ``_state_changed``; 1 s of wall time at most) until guard input
+        ``stream`` ("force", "tip"; None: none) has reached ``stamp`` (s, sim) to within
+        :data:`STREAM_SLACK_S`: the streams arrive on connections of their own."""
+        if stream is not None:
+            self._state_changed.wait_for(
+                lambda: self._stream_stamps[stream] >= stamp - STREAM_SLACK_S, 1.0
+            )
 
     def _publish_signals(self, monitor: ExecutionMonitor) -> None:
         with self._state_changed:

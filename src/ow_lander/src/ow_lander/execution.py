@@ -341,6 +341,16 @@ class ExecutionMonitor:
             guard.contact_time = t
         return fired
 
+    def guard_stream(self, t: float) -> str | None:
+        """The guard's input stream ("force": the wrist F/T sensor, "tip": the scoop tip from
+        tf) that must have reached time ``t`` (s, sim) before a decision on the joint state of
+        ``t``: a descent ends as "no ground" only once the readings up to its end are in. None
+        when no guard is looking for contact then."""
+        guard = self.guard
+        if guard is None or guard.contact_time is not None or t < guard.start:
+            return None
+        return "tip" if guard.kind == "velocity" else "force"
+
     @property
     def watches_force(self) -> bool:
         """Whether contact is detected from the wrist F/T sensor (force detector or a guarded

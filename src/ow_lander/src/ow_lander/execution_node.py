@@ -148,12 +148,9 @@ class ArmExecutor(ArmObserver):
                 contact = monitor.contact_time
             if arrived and contact is not None:
                 # The simulation may have run on: the joint states up to the contact first.
-                def caught_up(until: float = contact) -> bool:
-                    return self._joint_stamp >= until
-
-                with self._state_changed:
-                    self._state_changed.wait_for(caught_up, timeout=1.0)
+                self._wait_joint_stamp(contact)
             with self._state_changed:
+                self._wait_stream(monitor.guard_stream(stamp) if arrived else None, stamp)
                 decision = monitor.decide(stamp, joints) if arrived else monitor.stalled()
             self._command(decision)
             if decision.result is not None:
