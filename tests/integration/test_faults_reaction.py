@@ -73,22 +73,23 @@ def inject(stack, **changes) -> None:
     stack.faults.update_configuration(changes)
 
 
-def inject_paused(stack, seen, what: str, **changes) -> None:
+def inject_paused(stack, latest: Latest, seen, what: str, **changes):
     """Inject ``changes`` with the simulation's clock stopped, so that they take effect at the
     simulation time the test chose however loaded the machine: pause, inject, take one physics
     step (the simulation flags a locked joint with the joint states it publishes after a step),
-    wait until ``seen()`` (the detector's status on this test's connection), then give the nodes
-    that react to it on their own connections (arm services, pan/tilt) ``REACT_WALL_S`` before
-    resuming."""
+    wait until a message of ``latest`` satisfies ``seen`` (on this test's connection; it is
+    returned), then give the nodes that react to it on their own connections (arm services,
+    pan/tilt) ``REACT_WALL_S`` before resuming."""
     pause, resume = stack.service("/sim/pause", Trigger), stack.service("/sim/resume", Trigger)
     assert pause().success
     try:
         inject(stack, **changes)
         assert stack.service("/sim/step", StepSimulation)(steps=1).success
-        seen(what)
+        msg = latest.wait_for(seen, what)
         time.sleep(REACT_WALL_S)
     finally:
         assert resume().success
+    return msg
 
 
 def step_until(stack, done, what: str, chunk: int = 5, max_steps: int = 30000) -> None:
@@ -153,14 +154,14 @@ def test_lock_half_way_through_a_grind_stops_the_arm_and_fails_naming_the_joint(
     try:
         assert in_trench.wait(300), "the grinder never went into the ground"
         watch.unregister()
-        flags = []
-        inject_paused(
+        flag = inject_paused(
             stack,
-            lambda what: flags.append(stack.flags.wait_for(lambda m: any(m.flags), what)),
+            stack.flags,
+            lambda m: any(m.flags),
             "the lock's flag",
             shou_pitch_joint_locked_failure=True,
         )
-        t_lock = flags[0].header.stamp.to_sec()
+        t_lock = flag.header.stamp.to_sec()
         assert grind.wait_for_result(rospy.Duration(120)), "TaskGrind did not end"
         text = grind.get_goal_status_text()
         assert grind.get_state() == GoalStatus.ABORTED, text
@@ -258,9 +259,8 @@ def test_ft_zero_signal_during_find_surface_never_gives_a_surface(stack, continu
         step_until(stack, lambda: bool(descending), "the scoop coming down towards the surface")
         inject_paused(
             stack,
-            lambda what: stack.arm.wait_for(
-                lambda m: m.value & ArmFaultsStatus.NO_FORCE_DATA, what
-            ),
+            stack.arm,
+            lambda m: m.value & ArmFaultsStatus.NO_FORCE_DATA,
             "NO_FORCE_DATA",
             enable=True,
             zero_signal_failure=True,
@@ -295,9 +295,8 @@ def test_locked_antenna_fails_pan_tilt_goals(stack):
         step_until(stack, half_way, "the mast half-way")
         inject_paused(
             stack,
-            lambda what: stack.pan_tilt.wait_for(
-                lambda m: m.value & PanTiltFaultsStatus.PAN_JOINT_LOCKED, what
-            ),
+            stack.pan_tilt,
+            lambda m: m.value & PanTiltFaultsStatus.PAN_JOINT_LOCKED,
             "PAN_JOINT_LOCKED",
             ant_pan_joint_locked_failure=True,
         )
