@@ -8,6 +8,7 @@ simulation publishes for a trench.
 """
 
 import re
+import time
 
 import numpy as np
 import pytest
@@ -56,7 +57,13 @@ def _guarded_move(stack, x, y, z, search=0.5, normal=(0.0, 0.0, 1.0)):
             use_defaults=False, x=x, y=y, z=z, direction_x=normal[0], direction_y=normal[1],
             direction_z=normal[2], search_distance=search,
         )  # fmt: skip
-        rospy.sleep(0.5)  # sim time: the latched result reaches us
+        # Every executed descent publishes its result (ground found or not) before the
+        # response; on its own connection it may arrive after it, under load well after. Then
+        # 0.5 s of sim time for a second one, if any.
+        deadline = time.monotonic() + 10.0
+        while not results and time.monotonic() < deadline:
+            time.sleep(0.01)
+        rospy.sleep(0.5)
     finally:
         sub.unregister()
     return response, results

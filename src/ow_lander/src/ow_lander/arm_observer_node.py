@@ -125,18 +125,22 @@ class ArmObserver:
             self._publish_signals(monitor)
 
     def _wait_joint_stamp(self, until: float) -> None:
-        """Wait (1 s of wall time at most) until a joint state of ``until`` (s, sim) or later
-        has arrived."""
+        """Wait (``joint_state_timeout_s`` of wall time at most: the stream has stalled after
+        that) until a joint state of ``until`` (s, sim) or later has arrived. Under load the
+        joint states, the largest stream, may lag the wrist readings by more than a second."""
         with self._state_changed:
-            self._state_changed.wait_for(lambda: self._joint_stamp >= until, 1.0)
+            self._state_changed.wait_for(
+                lambda: self._joint_stamp >= until, self.joint_state_timeout_s
+            )
 
     def _wait_stream(self, stream: str | None, stamp: float) -> None:
-        """Wait (holding ``_state_changed``; 1 s of wall time at most) until guard input
-        ``stream`` ("force", "tip"; None: none) has reached ``stamp`` (s, sim) to within
-        :data:`STREAM_SLACK_S`: the streams arrive on connections of their own."""
+        """Wait (holding ``_state_changed``; ``joint_state_timeout_s`` of wall time at most)
+        until guard input ``stream`` ("force", "tip"; None: none) has reached ``stamp`` (s, sim)
+        to within :data:`STREAM_SLACK_S`: the streams arrive on connections of their own."""
         if stream is not None:
             self._state_changed.wait_for(
-                lambda: self._stream_stamps[stream] >= stamp - STREAM_SLACK_S, 1.0
+                lambda: self._stream_stamps[stream] >= stamp - STREAM_SLACK_S,
+                self.joint_state_timeout_s,
             )
 
     def _publish_signals(self, monitor: ExecutionMonitor) -> None:
