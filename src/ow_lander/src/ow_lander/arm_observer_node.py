@@ -19,14 +19,16 @@ from ow_lander import conversions as conv
 from ow_lander.description import ALL_JOINTS, ARM_JOINTS, BASE_FRAME, SCOOP_TIP_FRAME
 from ow_lander.errors import PlanningError
 from ow_lander.execution import ExecutionMonitor
+from ow_lander.lockstep_node import LockstepClient
 from ow_msgs.msg import GroundDetectorSignal
 from owl_msgs.msg import ArmEndEffectorForceTorque
 
 #: Called with (stamp s sim, joints rad by name, wrist force (3,) N, torque (3,) N m) on every
 #: joint state during an execution (the actions' feedback).
 SampleCallback = Callable[[float, dict[str, float], np.ndarray, np.ndarray], None]
-#: s (sim), a guard's stream has reached a joint state this close (it may run at a lower rate).
-STREAM_SLACK_S = 0.05
+#: s (sim), a guard's stream has reached a joint state's stamp when it is this close (stamps
+#: are rounded to nanoseconds).
+STREAM_SLACK_S = 1e-6
 
 
 class ArmObserver:
@@ -54,20 +56,32 @@ class ArmObserver:
         #: s (sim), the newest stamp of each guard input stream received ("force", "tip")
         self._stream_stamps = {"force": -1.0, "tip": -1.0}
         self._on_sample: SampleCallback | None = None
+        #: the simulation's lockstep, once joined: with no execution running, every joint state
+        #: is acknowledged as it arrives (an execution acknowledges its decisions)
+        self._lockstep: LockstepClient | None = None
         self._wrench = (np.zeros(3), np.zeros(3))
         self.signal_pub = rospy.Publisher(
             "/arm/ground_detector", GroundDetectorSignal, queue_size=100
         )
+        # TCP_NODELAY: the simulation writes a few messages at a time, and Nagle's algorithm
+        # with delayed acknowledgements held each write back 40 ms (a lockstep round trip).
         rospy.Subscriber(
-            "/joint_states", JointState, self._on_joint_states, queue_size=conv.EVERY_MESSAGE
+            "/joint_states",
+            JointState,
+            self._on_joint_states,
+            queue_size=conv.EVERY_MESSAGE,
+            tcp_nodelay=True,
         )
-        rospy.Subscriber("/tf", TFMessage, self._on_tf, queue_size=conv.EVERY_MESSAGE)
+        rospy.Subscriber(
+            "/tf", TFMessage, self._on_tf, queue_size=conv.EVERY_MESSAGE, tcp_nodelay=True
+        )
         rospy.Subscriber("/tf_static", TFMessage, self._on_tf, callback_args=True, queue_size=10)
         rospy.Subscriber(
             "/arm_end_effector_force_torque",
             ArmEndEffectorForceTorque,
             self._on_wrist,
             queue_size=conv.EVERY_MESSAGE,
+            tcp_nodelay=True,
         )
 
     def _on_joint_states(self, msg: JointState) -> None:
@@ -78,6 +92,8 @@ class ArmObserver:
             if self._monitor is not None:
                 self._monitor.record_joint_state(self._joint_stamp, self._joints)
                 self._pending.append((self._joint_stamp, dict(self._joints)))
+            elif self._lockstep is not None:
+                self._lockstep.ack(self._joint_stamp)
             self._state_changed.notify_all()
             on_sample, joints, (force, torque) = self._on_sample, dict(self._joints), self._wrench
         if on_sample is not None:
@@ -95,6 +111,7 @@ class ArmObserver:
         if stamps:
             with self._state_changed:
                 self._stream_stamps["tip"] = max(s.to_sec() for s in stamps)
+                self._state_changed.notify_all()  # a decision may wait for it
         for stamp in sorted(stamps):
             monitor = self._monitor
             if monitor is None or not monitor.wants_tip(stamp.to_sec()):
@@ -119,29 +136,43 @@ class ArmObserver:
             self._wrench = (force, torque)
             self._stream_stamps["force"] = t
             monitor = self._monitor
-            if monitor is not None and monitor.wrist_force(t, force, torque):
-                self._state_changed.notify_all()
+            if monitor is not None:
+                monitor.wrist_force(t, force, torque)
+            self._state_changed.notify_all()  # a decision may wait for it
         if monitor is not None:
             self._publish_signals(monitor)
 
-    def _wait_joint_stamp(self, until: float) -> None:
-        """Wait (``joint_state_timeout_s`` of wall time at most: the stream has stalled after
-        that) until a joint state of ``until`` (s, sim) or later has arrived. Under load the
-        joint states, the largest stream, may lag the wrist readings by more than a second."""
-        with self._state_changed:
-            self._state_changed.wait_for(
-                lambda: self._joint_stamp >= until, self.joint_state_timeout_s
-            )
-
-    def _wait_stream(self, stream: str | None, stamp: float) -> None:
-        """Wait (holding ``_state_changed``; ``joint_state_timeout_s`` of wall time at most)
-        until guard input ``stream`` ("force", "tip"; None: none) has reached ``stamp`` (s, sim)
-        to within :data:`STREAM_SLACK_S`: the streams arrive on connections of their own."""
+    def _wait_stream(self, monitor: ExecutionMonitor, stamp: float) -> None:
+        """Wait (holding ``_state_changed``; ``joint_state_timeout_s`` of wall time at most: the
+        simulation has stopped then) until the input stream of ``monitor``'s guard ("force",
+        "tip"; none: no wait) has a message of ``stamp`` (s, sim) or later, so a decision on the
+        joint state of ``stamp`` has every reading up to it: the streams arrive on connections of
+        their own, and under load one may lag another by seconds. A stop request ends the wait
+        (the clock is paused for it)."""
+        stream = monitor.guard_stream(stamp)
         if stream is not None:
             self._state_changed.wait_for(
-                lambda: self._stream_stamps[stream] >= stamp - STREAM_SLACK_S,
+                lambda: (
+                    self._stream_stamps[stream] >= stamp - STREAM_SLACK_S
+                    or monitor.stop_time is not None
+                ),
                 self.joint_state_timeout_s,
             )
+
+    def wait_quiet(self, quiet_s: float, limit_s: float = 1.0) -> None:
+        """Wait until no new /joint_states has arrived for ``quiet_s`` (wall; ``limit_s`` at
+        most): the newest one then carries the paused simulation's time."""
+        deadline = time.monotonic() + limit_s
+        with self._state_changed:
+            stamp = None
+            while time.monotonic() < deadline and stamp != self._joint_stamp:
+                stamp = self._joint_stamp
+                self._state_changed.wait(timeout=quiet_s)
+
+    def newest_stamp(self) -> float:
+        """s (sim), the stamp of the newest joint state received (0 before one)."""
+        with self._state_changed:
+            return self._joint_stamp
 
     def _publish_signals(self, monitor: ExecutionMonitor) -> None:
         with self._state_changed:

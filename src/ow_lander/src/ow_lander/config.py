@@ -163,6 +163,17 @@ class ExecutionConfig:
         ground_force_threshold_n: N, rise of the wrist force that means contact (force
             detector).
         joint_state_timeout_s: s (wall), how long to wait for /joint_states before refusing.
+        lockstep: join the simulation's lockstep (docs/determinism.md) when it offers one: the
+            simulation waits for this node's decisions on every joint state, and its holds and
+            set-points take effect at the stamp decided on plus the lockstep latency, whatever
+            the load. False: commands go out on the controllers' topics as they are decided.
+        lockstep_hold: with lockstep, the simulation also stops where an execution ends (its
+            final hold) until the next trajectory is delivered, so the next operation starts at
+            a time that does not depend on when it is requested: the mission's setting. Time
+            then passes only during executions.
+        lockstep_settle_s: s (sim) the simulation runs on after an execution's final hold takes
+            effect before ``lockstep_hold`` stops it: the arm settles at the hold (a guarded
+            move's scoop comes back to where it touched the ground).
     """
 
     interface: str = field(default="trajectory", metadata=_choices(*EXECUTION_INTERFACES))
@@ -181,6 +192,9 @@ class ExecutionConfig:
     )
     ground_force_threshold_n: float = field(default=10.0, metadata=POSITIVE)
     joint_state_timeout_s: float = field(default=5.0, metadata=POSITIVE)
+    lockstep: bool = True
+    lockstep_hold: bool = False
+    lockstep_settle_s: float = field(default=1.0, metadata=NON_NEGATIVE)
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,8 @@ FloatArray = npt.NDArray[np.float64]
 
 #: Joint states of a guarded descent kept to look up the one at the contact stamp (10 s at 50 Hz).
 JOINT_HISTORY = 500
+#: s (sim), stamps this close count as equal (stamps are rounded to nanoseconds).
+STAMP_SLACK_S = 1e-6
 #: rad/s, a stopping arm is at rest when no joint moves faster than this.
 REST_SPEED = 0.005
 #: rad/s, a joint slower than this at a stop request needs no braking.
@@ -368,16 +370,20 @@ class ExecutionMonitor:
 
     # ------------------------------------------------------------------------------ decisions
     def decide(self, stamp: float, joints: Mapping[str, float]) -> Decision:
-        """The decision on the newest joint state (``stamp`` s sim, rad by name).
+        """The decision on the joint state of ``stamp`` (s sim, rad by name); call it on every
+        joint state in order, once the guard's stream has reached ``stamp``
+        (:meth:`guard_stream`).
 
-        After a contact, call it once the joint states up to the contact stamp have been
-        recorded: the arm is held at the joint state of the contact stamp.
+        A contact (or threshold) is acted on at the first joint state at or after the reading
+        that showed it, whenever that reading arrived: the arm is held at the joint state of
+        the contact stamp.
         """
         cfg = self.config
         names = self.trajectory.joints
         here = np.array([joints[j] for j in names])
         t = stamp - self.t_start
-        if self.contact_time is not None:
+        contact = self.contact_time
+        if contact is not None and contact <= stamp + STAMP_SLACK_S:
             return self._contact(here, t)
         if self.stop_time is not None:
             return self._stop(stamp, here, t)

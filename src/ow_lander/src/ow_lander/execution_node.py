@@ -9,11 +9,11 @@ import time
 
 import rospy
 from std_msgs.msg import Float64
-from trajectory_msgs.msg import JointTrajectory
 
 from ow_lander import conversions as conv
 from ow_lander.arm_observer_node import ArmObserver, SampleCallback
 from ow_lander.config import ExecutionConfig
+from ow_lander.delivery_node import TrajectoryDelivery
 from ow_lander.description import ARM_JOINTS
 from ow_lander.execution import (
     Decision,
@@ -24,8 +24,9 @@ from ow_lander.execution import (
     with_settle_pause,
 )
 from ow_lander.faults_watch_node import FaultWatch
+from ow_lander.lockstep_node import LockstepClient, LockstepError
 from ow_lander.model import LanderModel
-from ow_lander.sim_clock_node import SimClock, TrajectoryDeliveryError
+from ow_lander.sim_clock_node import TrajectoryDeliveryError
 from ow_lander.trajectory import Trajectory
 from ow_msgs.msg import GuardedMoveResult
 
@@ -34,11 +35,14 @@ class ArmExecutor(ArmObserver):
     """Executes trajectories on the simulation, watched on simulation time.
 
     Subscribes and publishes as :class:`~ow_lander.arm_observer_node.ArmObserver`, and
-    Publishes: ``/sim/joint_trajectory`` (trajectory_msgs/JointTrajectory, interface
-        ``trajectory``) or ``/<joint>_position_controller/command`` (std_msgs/Float64, rad;
-        interface ``position_controllers``, and every hold) for the six arm joints;
+    Publishes: trajectories through :class:`~ow_lander.delivery_node.TrajectoryDelivery`
+        (interface ``trajectory``); the set-points (interface ``position_controllers``) and
+        holds of its decisions as lockstep acknowledgements (``/sim/lockstep``, see
+        :mod:`ow_lander.lockstep_node`) once in the simulation's lockstep, else on
+        ``/<joint>_position_controller/command`` (std_msgs/Float64, rad) for the six arm joints;
         ``/guarded_move_result`` (ow_msgs/GuardedMoveResult, latched) once per guarded descent.
-    Calls: ``/sim/pause``, ``/sim/resume`` (std_srvs/Trigger) around delivering a trajectory.
+    Calls: ``/sim/pause``, ``/sim/resume`` (std_srvs/Trigger) around a delivery and a stop;
+        ``/sim/lockstep_register`` once, when ``lockstep`` is set.
     Faults (:class:`~ow_lander.faults_watch_node.FaultWatch`): an execution stops and fails
         naming the fault when :meth:`~ow_lander.fault_reaction.FaultReaction.stop_reason` says
         so (an arm execution error with ``arm_motion_continues_in_fault`` false).
@@ -53,17 +57,33 @@ class ArmExecutor(ArmObserver):
         self.config = config
         self.model = model
         self._stopped = threading.Event()
-        self._sim_clock = SimClock(config.service_wait_s)
+        self.delivery = TrajectoryDelivery(config, self)
+        self._sim_clock = self.delivery.sim_clock
         self.result_pub = rospy.Publisher(
             "/guarded_move_result", GuardedMoveResult, queue_size=10, latch=True
         )
         self.command_pubs = {
             j: rospy.Publisher(conv.command_topic(j), Float64, queue_size=10) for j in ARM_JOINTS
         }
-        self.trajectory_pub = rospy.Publisher(
-            "/sim/joint_trajectory", JointTrajectory, queue_size=10
-        )
         self.faults = FaultWatch(self._on_fault_status)
+        if config.lockstep:
+            threading.Thread(target=self._join_lockstep, name="lockstep", daemon=True).start()
+
+    def _join_lockstep(self) -> None:
+        """Register with the simulation's lockstep once it offers one (it may start later, or
+        never: then commands go out on the controllers' topics)."""
+        client = LockstepClient(rospy.get_name())
+        try:
+            client.register(hold=self.config.lockstep_hold)
+        except LockstepError as error:
+            rospy.logwarn(f"arm services: no lockstep: {error}")
+            return
+        with self._state_changed:  # and the joint states since registration
+            self._lockstep = client
+            if self._monitor is None:
+                client.ack(self._joint_stamp, force=True)
+        rospy.on_shutdown(client.close)
+        rospy.loginfo(f"arm services: in the simulation's lockstep (latency {client.latency} s)")
 
     def _on_fault_status(self, stamp: float) -> None:
         """Stop the running execution, from the fault's stamp, when a fault says so (in a
@@ -97,7 +117,7 @@ class ArmExecutor(ArmObserver):
         trajectory = with_settle_pause(trajectory, cfg)
         if cfg.interface == "trajectory":
             try:
-                t_start = self._send_trajectory(trajectory)
+                t_start = self.delivery.send(trajectory)
             except TrajectoryDeliveryError as error:
                 return ExecutionResult(False, str(error))
         else:
@@ -114,11 +134,15 @@ class ArmExecutor(ArmObserver):
             fault = self.faults.now().stop_reason(monitor.watches_force)
             if fault is not None:
                 monitor.request_stop(self._joint_stamp, fault)
+        if self._lockstep is not None:  # the monitor sees every joint state from now on
+            self._lockstep.release()
         try:
             result = self._follow(monitor)
         finally:
             with self._state_changed:
                 self._monitor, self._on_sample = None, None
+                if self._lockstep is not None:  # the joint states no decision was taken on
+                    self._lockstep.ack(self._joint_stamp, force=True)
             self._stopped.set()
         standing = self.faults.now().arm_error()
         if not result.success and result.fault is None and standing is not None:
@@ -137,7 +161,7 @@ class ArmExecutor(ArmObserver):
 
             def news() -> bool:
                 stop = monitor.stop_time is not None and monitor.braking is None
-                return bool(self._pending) or monitor.contact_time is not None or stop
+                return bool(self._pending) or stop
 
             with self._state_changed:
                 arrived = self._state_changed.wait_for(news, self.config.joint_state_timeout_s)
@@ -145,14 +169,10 @@ class ArmExecutor(ArmObserver):
                     stamp, joints = self._pending.popleft()
                 else:
                     stamp, joints = self._joint_stamp, dict(self._joints)
-                contact = monitor.contact_time
-            if arrived and contact is not None:
-                # The simulation may have run on: the joint states up to the contact first.
-                self._wait_joint_stamp(contact)
-            with self._state_changed:
-                self._wait_stream(monitor.guard_stream(stamp) if arrived else None, stamp)
+                if arrived:
+                    self._wait_stream(monitor, stamp)
                 decision = monitor.decide(stamp, joints) if arrived else monitor.stalled()
-            self._command(decision)
+            self._apply(decision, stamp)
             if decision.result is not None:
                 return decision.result
         return ExecutionResult(False, "shutting down")
@@ -168,7 +188,7 @@ class ArmExecutor(ArmObserver):
         try:
             if paused and self._monitor is not None:
                 # The newest joint state is then the paused simulation's: the arm brakes there.
-                self._wait_quiet(self.config.delivery_wait_s)
+                self.wait_quiet(self.config.delivery_wait_s)
             with self._state_changed:
                 monitor = self._monitor
                 if monitor is not None:
@@ -187,61 +207,23 @@ class ArmExecutor(ArmObserver):
             self._stopped.wait(timeout=self.config.joint_state_timeout_s)
         return monitor is not None
 
+    def _apply(self, decision: Decision, stamp: float) -> None:
+        """Carry out the decision on the joint state of ``stamp`` (s, sim): in the lockstep, as
+        its acknowledgement (set-points then hold, from ``stamp`` + latency; with
+        ``lockstep_hold`` the simulation stops ``lockstep_settle_s`` later when the execution
+        ends), else published at once."""
+        lockstep = self._lockstep
+        if lockstep is None:
+            self._command(decision)
+            return
+        commands = {**(decision.setpoints or {}), **(decision.hold or {})}
+        if decision.result is not None and self.config.lockstep_hold:
+            lockstep.hold(stamp, commands, self.config.lockstep_settle_s)
+        else:
+            lockstep.ack(stamp, commands)
+
     def _command(self, decision: Decision) -> None:
         """Publish a decision's set-points, then its hold."""
         for commands in (decision.setpoints, decision.hold):
             for joint, value in (commands or {}).items():
                 self.command_pubs[joint].publish(Float64(value))
-
-    def _send_trajectory(self, trajectory: Trajectory) -> float:
-        """Hand ``trajectory`` to the simulation; return when (sim time, s) it starts.
-
-        A simulation running many times faster than real time could pass the start time before
-        the message arrives, so its clock is paused while the message is delivered (when it
-        offers ``/sim/pause`` and ``/sim/resume``), and resumed only if it was running. A
-        simulation that sends receipts starts the trajectory when it queues it, clock stopped,
-        and its receipt says when: the start is then exact whatever the machine's load.
-        Otherwise the start is ``start_delay_s`` after the newest joint state.
-
-        Raises:
-            TrajectoryDeliveryError: the simulation does not subscribe to the trajectory topic,
-                sent no receipt, or ignored the trajectory.
-        """
-        cfg = self.config
-        deadline = time.monotonic() + cfg.service_wait_s
-        while self.trajectory_pub.get_num_connections() == 0:  # else the message is lost
-            if time.monotonic() > deadline:
-                msg = (
-                    "the simulation does not subscribe to /sim/joint_trajectory "
-                    f"(waited {cfg.service_wait_s} s)"
-                )
-                raise TrajectoryDeliveryError(msg)
-            time.sleep(0.01)
-        paused_here = self._sim_clock.pause()
-        paused = paused_here is not None
-        try:
-            if paused and self._sim_clock.sends_receipts():
-                token = self._sim_clock.new_token()
-                self.trajectory_pub.publish(conv.trajectory_msg(trajectory, 0.0, token))
-                return float(self._sim_clock.wait_received(token).to_sec())
-            if paused:
-                self._wait_quiet(cfg.delivery_wait_s)
-            with self._state_changed:
-                t_start = self._joint_stamp + cfg.start_delay_s
-            self.trajectory_pub.publish(conv.trajectory_msg(trajectory, t_start))
-            if paused:
-                time.sleep(cfg.delivery_wait_s)  # no receipts: time for the delivery
-            return t_start
-        finally:
-            if paused_here:
-                self._sim_clock.resume()
-
-    def _wait_quiet(self, quiet_s: float, limit_s: float = 1.0) -> None:
-        """Wait until no new /joint_states has arrived for ``quiet_s`` (wall): the newest one then
-        carries the paused simulation's time."""
-        deadline = time.monotonic() + limit_s
-        with self._state_changed:
-            stamp = None
-            while time.monotonic() < deadline and stamp != self._joint_stamp:
-                stamp = self._joint_stamp
-                self._state_changed.wait(timeout=quiet_s)

@@ -346,10 +346,15 @@ def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str,
             # Paused until every node is up: a simulation running at full speed while the
             # others start would take their CPU and add idle minutes to the mission's sim time.
             "start_paused": True,
+            # Deterministic (docs/determinism.md): the simulation waits for the arm services'
+            # decisions on every joint state, from t = 0 until they have registered ...
+            "lockstep_clients": ["/arm_services"],
         },
         "arm_services": {
             "plan_and_execute": True,
             "trajectory_dir": str(run_dir / "trajectories"),
+            # ... and stops where each step ends, so the next starts there whenever it is called.
+            "execution": {"lockstep": True, "lockstep_hold": True},
         },
         # OceanWATERS' telemetry in the bags at 10 Hz of sim time (the full-rate /joint_states
         # are there too); node_params {telemetry: {rate_hz: 0}} records one per joint state.

@@ -20,6 +20,8 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 import ow_msgs.srv
+from ow_lander.conversions import EVERY_MESSAGE
+from ow_lander.lockstep_node import LockstepError, wait_until_held
 from ow_mission.action_client_node import ActionStepClient
 from ow_mission.errors import ConfigError
 from ow_mission.fault_schedule_node import FaultScheduleRunner
@@ -41,6 +43,7 @@ from ow_mission.stack import (
     call_with_timeout,
     peak_memory_mb,
     private_master,
+    wait_until,
 )
 from ow_msgs.msg import Power
 
@@ -62,11 +65,11 @@ class MissionRunner:
         self.run_dir = new_run_dir(config, workspace)
         self.report = MissionReport(config, self.run_dir)
         self.power = PowerTrace()
-        self._clock = 0.0
-        self._joint_stamp = 0.0
+        self._clock = self._joint_stamp = 0.0  # s (sim), the newest received
         self._lock = threading.Lock()
         self._actions = ActionStepClient(config.dig) if config.interface == "actions" else None
         self._faults: FaultScheduleRunner | None = None
+        self._hold = False  # the stack holds the simulation between steps (lockstep)
 
     # ------------------------------------------------------------------------- ROS callbacks
     def _on_clock(self, msg: Any) -> None:
@@ -77,8 +80,7 @@ class MissionRunner:
             self._joint_stamp = msg.header.stamp.to_sec()
 
     def _last_joint_stamp(self, quiet_s: float = 0.05, limit_s: float = 2.0) -> float:
-        """s, the stamp of the last /joint_states once none has arrived for ``quiet_s`` (wall):
-        with the simulation paused, the last one it published."""
+        """s, the last /joint_states stamp once none came for ``quiet_s`` (wall): a paused sim's."""
         deadline = time.monotonic() + limit_s
         while True:
             with self._lock:
@@ -88,10 +90,8 @@ class MissionRunner:
                 if self._joint_stamp == stamp or time.monotonic() > deadline:
                     return self._joint_stamp
 
-    def _on_power(self, msg: Any) -> None:
-        self.power.add(
-            msg.header.stamp.to_sec(), msg.mechanical_energy, msg.energy, msg.total_power
-        )
+    def _on_power(self, m: Any) -> None:
+        self.power.add(m.header.stamp.to_sec(), m.mechanical_energy, m.energy, m.total_power)
 
     # --------------------------------------------------------------------------------- run
     def run(self) -> MissionReport:
@@ -115,7 +115,7 @@ class MissionRunner:
                     if self._faults is not None:
                         self.report.fault_schedule = self._faults.results()
                     self.report.peak_memory_mb = peak_memory_mb(node.proc.pid for node in nodes)
-                    self.report.sim_time_s = self._clock
+                    self.report.sim_time_s = max(self._clock, self._last_joint_stamp())
                     stack.shutdown()  # the recorder closes its bag on SIGINT
         except (HarnessError, ConfigError) as exc:
             self.report.error = str(exc)
@@ -126,6 +126,7 @@ class MissionRunner:
     def _start(self, stack: RosStack) -> list[NodeProcess]:
         rospy.init_node("mission", disable_signals=True)
         params = node_parameters(self.config, self.run_dir)
+        self._hold = bool(params["arm_services"].get("execution", {}).get("lockstep_hold"))
         # Started side by side (the simulation paused), then waited for: each node spends a
         # second or two importing, and they need nothing from one another to start.
         ready: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
@@ -147,12 +148,14 @@ class MissionRunner:
             stack.wait_ready(node, *ready[spec.executable])
         rospy.Subscriber("/clock", Clock, self._on_clock, queue_size=10)
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=10)
-        rospy.Subscriber("/power", Power, self._on_power, queue_size=1000)
+        rospy.Subscriber("/power", Power, self._on_power, queue_size=EVERY_MESSAGE)
         # Faults due at t = 0 are in place before the clock starts.
         self._faults = FaultScheduleRunner(self.config.faults)
         self._faults.poll(self._clock)
-        # The sim node is ready (it offers /sim/resume): start its clock.
-        error = self._sim_clock("resume")
+        # All connected before the first state is published: equal runs record equal messages.
+        if not wait_until(lambda: not stack.master.unconnected(), 10.0):
+            print("[mission] not every subscription connected within 10 s", flush=True)
+        error = self._sim_clock("resume")  # the sim offers /sim/resume: start its clock
         if error is not None:
             msg = f"could not start the simulation's clock: {error}"
             raise HarnessError(msg)
@@ -165,6 +168,7 @@ class MissionRunner:
     def _run_steps(self) -> None:
         c = self.config
         ground = c.expected_ground
+        held = None  # where the lockstep holds the simulation since the last step
         for step in STEPS:
             service = step.service.format(dig=c.dig)
             srv_name = step.srv_type.format(Dig=c.dig.capitalize())
@@ -172,8 +176,9 @@ class MissionRunner:
             result = StepResult(step.name, service, fields)
             self.report.steps.append(result)
             # The simulation runs only during the steps: what the mission does in between
-            # (energies, renders) neither adds sim time nor competes with it for the CPU.
-            result.sim_start_s = self._clock
+            # (energies, renders) neither adds sim time nor competes with it for the CPU. In the
+            # lockstep it stands where the last step ended (docs/determinism.md).
+            result.sim_start_s = self._last_joint_stamp() if held is None else held
             if self._faults is not None:  # faults due at the step's start, before it runs
                 self._faults.step_started(step.name, result.sim_start_s)
             self._sim_clock("resume", between_steps=True)
@@ -191,10 +196,14 @@ class MissionRunner:
                 result.message = f"no answer within step_timeout_s = {c.step_timeout_s:g} s (wall)"
                 response = None
             result.wall_time_s = time.monotonic() - wall0
+            try:  # in the lockstep the step ends where the arm services hold the simulation
+                held = wait_until_held("/arm_services", c.step_timeout_s) if self._hold else None
+            except LockstepError as exc:
+                held = None
+                print(f"[mission] {exc}", flush=True)
             self._sim_clock("pause", between_steps=True)
-            # The power node computes /power from each /joint_states: the step's window ends
-            # at the last one, which the power trace then reaches.
-            result.sim_end_s = self._last_joint_stamp()
+            # /power is computed from each /joint_states: the step's window ends at the last.
+            result.sim_end_s = self._last_joint_stamp() if held is None else held
             self.power.wait_until(result.sim_end_s, POWER_WAIT_S)
             if response is not None:
                 result.take_response(response)

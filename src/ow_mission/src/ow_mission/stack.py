@@ -149,6 +149,28 @@ class RosMaster:
         publishers, _, _ = self.call("getSystemState")
         return {name for name, _ in publishers}
 
+    def unconnected(self, topics: Iterable[str] | None = None) -> list[str]:
+        """Topics (of ``topics``; None: all) with a subscriber the master lists that one of
+        their publishers is not yet sending to: a publisher adds a connection on its side last,
+        and what it publishes before then does not reach that subscriber."""
+        publishers: list[tuple[str, list[str]]]
+        subscribers: list[tuple[str, list[str]]]
+        publishers, subscribers, _ = self.call("getSystemState")
+        wanted = None if topics is None else set(topics)
+        listening = {name: len(nodes) for name, nodes in subscribers}
+        sending: dict[str, dict[str, int]] = {}  # publisher node -> topic -> connections
+        missing = []
+        for name, nodes in publishers:
+            if (wanted is not None and name not in wanted) or not listening.get(name):
+                continue
+            for node in nodes:
+                if node not in sending:
+                    sending[node] = _outbound_connections(str(self.call("lookupNode", node)))
+                if sending[node].get(name, 0) < listening[name]:
+                    missing.append(name)
+                    break
+        return missing
+
     def offered_by(self, node: str) -> tuple[set[str], set[str]]:
         """(services, published topics) that node ``node`` (e.g. ``/sim``) has registered."""
         publishers, _, services = self.call("getSystemState")
@@ -156,6 +178,30 @@ class RosMaster:
             {name for name, providers in services if node in providers},
             {name for name, nodes in publishers if node in nodes},
         )
+
+
+def wait_until(condition: Callable[[], bool], timeout_s: float, poll_s: float = 0.05) -> bool:
+    """Wait until ``condition()`` holds (``timeout_s`` of wall time at most); whether it did."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(poll_s)
+    return True
+
+
+def _outbound_connections(node_uri: str) -> dict[str, int]:
+    """Topic -> open outbound connections of the node at ``node_uri`` (its ``getBusInfo``);
+    empty when it does not answer (it is stopping)."""
+    try:
+        reply: Any = xmlrpc.client.ServerProxy(node_uri).getBusInfo(_HARNESS_CALLER)
+    except (OSError, xmlrpc.client.Error):
+        return {}
+    counts: dict[str, int] = {}
+    for connection in reply[2]:  # [id, destination, direction, transport, topic, connected, ..]
+        if connection[2] == "o" and connection[5]:
+            counts[connection[4]] = counts.get(connection[4], 0) + 1
+    return counts
 
 
 @dataclass

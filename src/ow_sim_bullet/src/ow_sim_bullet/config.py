@@ -7,6 +7,7 @@ and :data:`PID_YAML`) and raises :class:`ConfigError` listing every bad key at o
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -213,6 +214,13 @@ class SimConfig:
         tool_state_rate_hz: Hz of sim time, /sim/scoop_state and /sim/grinder_state.
         terrain_publish_period: s of wall time, minimum interval between /sim/terrain updates.
         noise_seed: seed of the injected F/T sensor noise (>= 0; equal seeds, equal runs).
+        lockstep_latency_s: s of sim time from a joint state to the commands a lockstep client
+            decided on it (:mod:`ow_sim_bullet.lockstep`); at least the longest gap between two
+            messages of /joint_states, /tf and the wrenches (:meth:`stream_gap_s`).
+        lockstep_timeout_s: s of wall time a step waits for a lockstep client's acknowledgement
+            before the client is dropped (a client that died).
+        lockstep_clients: names of lockstep clients the simulation waits for from its start:
+            it holds at t = 0 until each has registered (the mission's arm services).
         gains: PID gains by joint name.
         initial_positions: rad, joint positions at start-up and after a reset, by joint name.
     """
@@ -241,6 +249,9 @@ class SimConfig:
     tool_state_rate_hz: float = 10.0
     terrain_publish_period: float = 0.5
     noise_seed: int = 0
+    lockstep_latency_s: float = 0.1
+    lockstep_timeout_s: float = 30.0
+    lockstep_clients: tuple[str, ...] = ()
     gains: Mapping[str, PidGains] = field(default_factory=_default_gains)
     initial_positions: Mapping[str, float] = field(default_factory=_default_initial)
 
@@ -248,6 +259,14 @@ class SimConfig:
     def dt(self) -> float:
         """s, the physics step."""
         return 1.0 / self.physics_rate_hz
+
+    def stream_gap_s(self) -> float:
+        """s of sim time, the longest gap between two messages of the streams a lockstep client
+        decides on (/joint_states, /tf, the wrenches): each is published on the first step at or
+        after its tick."""
+        dt = self.dt
+        rates = (self.joint_state_rate_hz, self.tf_rate_hz, self.wrench_rate_hz)
+        return max(math.ceil(1.0 / (rate * dt) - 1e-9) * dt for rate in rates)
 
     @classmethod
     def from_dict(cls, raw: Mapping[str, Any]) -> SimConfig:
@@ -309,6 +328,9 @@ class SimConfig:
                 "terrain_publish_period", d.terrain_publish_period, "s"
             ),
             noise_seed=p.integer("noise_seed", d.noise_seed, low=0),
+            lockstep_latency_s=p.positive("lockstep_latency_s", d.lockstep_latency_s, "s"),
+            lockstep_timeout_s=p.positive("lockstep_timeout_s", d.lockstep_timeout_s, "s"),
+            lockstep_clients=p.names("lockstep_clients", d.lockstep_clients),
             gains=gains,
             initial_positions=initial,
         )
@@ -316,6 +338,14 @@ class SimConfig:
             p.problem(
                 f"{p.name('carve_full_force')} = {config.carve_full_force:g} N must exceed "
                 f"{p.name('terrain_yield_force')} = {config.terrain_yield_force:g} N"
+            )
+        gap = config.stream_gap_s()
+        if config.lockstep_latency_s < gap - 1e-9:
+            p.problem(
+                f"{p.name('lockstep_latency_s')} = {config.lockstep_latency_s:g} s must be at "
+                f"least {gap:g} s, the longest gap between /joint_states, /tf or wrench messages "
+                "at these rates (a lockstep client would wait for a message the simulation cannot "
+                "publish)"
             )
         low, high = config.terrain_png_height_range
         if high <= low:

@@ -126,6 +126,8 @@ class SimOutputs:
         #: the tools' last snapshots (the tool states are published from them).
         self.snapshots: dict[str, ToolSnapshot] = {}
         self._unflushed_steps = 0
+        #: s of sim time, the stamp of the newest /joint_states queued (-1: none yet).
+        self.joint_stamp = -1.0
         #: s of sim time of the last /clock message queued, and of the last one told on_clock.
         self._clock_time = self._told_time = -1.0
 
@@ -144,6 +146,7 @@ class SimOutputs:
             joint_state = self._joint_state_wire
             position, velocity = sample.position, sample.velocity
             self._joint_pub.publish(joint_state, t, position, velocity, sample.effort)
+            self.joint_stamp = t
             self._damping_pub.publish(joint_state, t, position, velocity, sample.damping_effort)
             names, flags = sim.locks.flags()
             self._flags_pub.publish(

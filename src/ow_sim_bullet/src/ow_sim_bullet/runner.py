@@ -12,6 +12,7 @@ from typing import Any, TypeVar
 
 from ow_lander.terrain import HeightMap
 from ow_sim_bullet.errors import CommandError, SimError
+from ow_sim_bullet.lockstep import Lockstep
 from ow_sim_bullet.outputs import SimOutputs
 from ow_sim_bullet.scheduling import Pacer
 from ow_sim_bullet.sim_core import BulletSim
@@ -36,6 +37,13 @@ class SimRunner:
         real_time_factor: sim s per wall s; 0: as fast as possible.
         start_paused: wait for :meth:`resume` (or :meth:`step_paused`) before stepping.
         is_shutdown: whether the process is shutting down (the loop and waits end).
+        log: error log (dropped lockstep clients, bad acknowledgements, ignored commands).
+
+    Attributes:
+        lockstep: the synchronous clients (:mod:`ow_sim_bullet.lockstep`; latency and the wall
+            time after which a silent client is dropped from the simulation's configuration),
+            guarded by this runner: change them through :meth:`lockstep_register` and
+            :meth:`lockstep_ack`.
     """
 
     def __init__(
@@ -45,6 +53,7 @@ class SimRunner:
         real_time_factor: float,
         start_paused: bool,
         is_shutdown: Callable[[], bool],
+        log: Callable[[str], None] = print,
     ) -> None:
         self.sim = sim
         self.outputs = outputs
@@ -54,6 +63,10 @@ class SimRunner:
         self._queue: deque[Callable[[], None]] = deque()
         self._paused = start_paused
         self._shutdown = False
+        self._started = False  # the initial state has been published
+        self.lockstep = Lockstep(sim.config.lockstep_latency_s)
+        self.lockstep_timeout_s = sim.config.lockstep_timeout_s
+        self._log = log
 
     # ------------------------------------------------------------------ other threads
     def enqueue(self, command: Callable[[], None]) -> None:
@@ -116,6 +129,42 @@ class SimRunner:
 
         self.enqueue(command)
 
+    def lockstep_register(self, name: str, enable: bool, hold: bool) -> tuple[float, str]:
+        """Register ``name`` as a lockstep client at the current sim time (``enable``), or
+        unregister it; returns (sim time s, what was done)."""
+        with self._wake:
+            now = self.sim.time
+            if enable:
+                self.lockstep.register(name, now, hold, time.monotonic())
+                done = f"{name} registered at t={now:.6f} s" + (", holding" if hold else "")
+            elif self.lockstep.unregister(name):
+                done = f"{name} unregistered at t={now:.6f} s"
+            else:
+                done = f"{name} was not registered"
+            self._wake.notify()
+        return now, done
+
+    def lockstep_ack(
+        self,
+        name: str,
+        stamp: float,
+        hold_until: float | None,
+        commands: list[tuple[str, float]],
+    ) -> None:
+        """A client's acknowledgement (:meth:`Lockstep.ack`); a problem with it is logged."""
+        with self._wake:
+            problem = self.lockstep.ack(name, stamp, hold_until, commands, time.monotonic())
+            self._wake.notify()
+        if problem is not None:
+            self._log(f"sim: {problem}")
+
+    def lockstep_status(self) -> tuple[float, float, list[str], tuple[str, str] | None]:
+        """(sim time s, stamp s of the newest joint state published, the registered clients,
+        :meth:`Lockstep.blocking` now)."""
+        with self._wake:
+            now, stamp = self.sim.time, self.outputs.joint_stamp
+            return now, stamp, list(self.lockstep.clients), self.lockstep.blocking(now)
+
     def call(self, command: Callable[[], T], timeout_s: float = CALL_TIMEOUT_S) -> T:
         """Run ``command`` on the simulation thread and return its result (or raise its error).
 
@@ -176,7 +225,10 @@ class SimRunner:
                 raise CommandError(msg)
 
         def take_steps() -> float:
+            self._started = True  # the steps' outputs follow
             for _ in range(steps):
+                if not self._await_clients(stop_at_hold=True):
+                    break  # a lockstep client holds the simulation here
                 self._advance()
             self.outputs.flush()
             return self.sim.time
@@ -204,12 +256,11 @@ class SimRunner:
 
     # ------------------------------------------------------------------ simulation thread
     def run(self) -> None:
-        """Publish the initial state, then step and run commands until :meth:`stop` or a
-        shutdown; paused, only run commands (and republish the terrain when due)."""
+        """Publish the initial state (when first running), then step and run commands until
+        :meth:`stop` or a shutdown; paused, only run commands (and republish the terrain when
+        due)."""
         sim, outputs, pacer = self.sim, self.outputs, self._pacer
         pacer.restart(sim.time)
-        outputs.publish(force=True)
-        outputs.flush()
         while not self._is_shutdown():
             with self._wake:
                 while not self._shutdown and not self._queue and self._paused:
@@ -226,13 +277,68 @@ class SimRunner:
                 outputs.flush()
                 pacer.restart(sim.time)
                 continue
+            if not self._started:
+                self._publish_initial()
+            if not self._await_clients(stop_at_hold=False, return_on_command=True):
+                pacer.restart(sim.time)
+                continue
             self._advance()
             wait = pacer.wait(sim.time)
             if wait > 0:
                 outputs.flush()
                 time.sleep(wait)
 
+    def _publish_initial(self) -> None:
+        """Publish the state the simulation starts from, once, when it first runs: a simulation
+        started paused publishes it when resumed, so the nodes (and bags) that connected while
+        it was paused all receive it."""
+        self._started = True
+        self.outputs.publish(force=True)
+        self.outputs.flush()
+
+    def _await_clients(self, stop_at_hold: bool, return_on_command: bool = False) -> bool:
+        """Wait until the lockstep clients let the simulation step from its current time; True
+        when it may. False, without waiting, when a client holds it (``stop_at_hold``) and, with
+        ``return_on_command``, as soon as a command is queued, the clock paused or the runner
+        stopped (the caller runs them and asks again). Everything published is written first:
+        the clients decide on it. A client silent for ``lockstep_timeout_s`` is dropped."""
+        now = self.sim.time
+        with self._wake:
+            blocked = self.lockstep.blocking(now)
+        if blocked is None:
+            return True
+        self.outputs.flush()
+        with self._wake:
+            while not self._is_shutdown() and not self._shutdown:
+                blocked = self.lockstep.blocking(now)
+                if blocked is None:
+                    return True
+                if stop_at_hold and blocked[1] == "hold":
+                    return False
+                if return_on_command and (self._queue or self._paused):
+                    return False
+                for name in self.lockstep.silent(now, time.monotonic(), self.lockstep_timeout_s):
+                    self.lockstep.unregister(name)
+                    self._log(
+                        f"sim: lockstep client {name} acknowledged nothing for "
+                        f"{self.lockstep_timeout_s:g} s of wall time (waiting at t={now:.3f} s): "
+                        "dropped from the lockstep"
+                    )
+                self._wake.wait(timeout=_POLL_S)
+                self.outputs.publish_terrain_if_due()
+        return False
+
     def _advance(self) -> None:
-        """One physics step and its outputs."""
+        """One physics step and its outputs; first the lockstep clients' commands due then."""
+        with self._wake:
+            due = self.lockstep.due(self.sim.time)
+        for joint, position in due:
+            try:
+                clipped = self.sim.set_setpoint(joint, position)
+            except CommandError as error:
+                self._log(f"sim: lockstep command ignored: {error}")
+                continue
+            if clipped is not None:
+                self._log(f"sim: lockstep command {clipped.describe()}")
         self.sim.step()
         self.outputs.after_step()

@@ -29,6 +29,7 @@ from ow_msgs.srv import (
 from ow_sim_bullet import conversions, outputs, wire
 from ow_sim_bullet.config import CONTROLLER_NAMES, SimConfig
 from ow_sim_bullet.errors import CommandError, SimError
+from ow_sim_bullet.lockstep_node import LockstepServer
 from ow_sim_bullet.reconfigure_node import SimReconfigure
 from ow_sim_bullet.runner import SimRunner
 from ow_sim_bullet.sim_core import BulletSim, make_force_model
@@ -84,6 +85,7 @@ class SimNode:
         ~set_pid_gains (ow_msgs/SetPidGains): change one joint's gains now (partial requests
             keep what they leave out; see SimReconfigure).
         ~set_terrain (ow_msgs/SetTerrain): replace the terrain (spec as ``~terrain``).
+    Lockstep: :class:`~ow_sim_bullet.lockstep_node.LockstepServer`, docs/determinism.md.
 
     Parameters: see :class:`ow_sim_bullet.config.SimConfig` and docs/simulation.md.
     """
@@ -117,8 +119,9 @@ class SimNode:
         on_clock = _set_rostime if own_clock is not None else None
         self.outputs = outputs.SimOutputs(self.sim, config, publishers, terrain, frames, on_clock)
         self.outputs.publish_terrain()
+        rtf, paused = config.real_time_factor, config.start_paused
         self.runner = SimRunner(
-            self.sim, self.outputs, config.real_time_factor, config.start_paused, rospy.is_shutdown
+            self.sim, self.outputs, rtf, paused, rospy.is_shutdown, rospy.logerr
         )
         for joint, controller in CONTROLLER_NAMES.items():
             topic = f"/{controller}_position_controller/command"
@@ -135,6 +138,7 @@ class SimNode:
         rospy.Service("~step", StepSimulation, self._on_step)
         rospy.Service("~set_terrain", SetTerrain, self._on_set_terrain)
         self.reconfigure = SimReconfigure(self.runner)  # faults, PID gains, ~set_pid_gains
+        self.lockstep = LockstepServer(self.runner, config.lockstep_clients)
         self._thread = threading.Thread(target=self._run, name="sim", daemon=True)
 
     def _parse_terrain(self, spec: str) -> HeightMap:

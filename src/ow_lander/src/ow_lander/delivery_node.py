@@ -1,0 +1,76 @@
+"""How ``arm_services`` hands a trajectory to the simulation (rospy wiring only; a node module of
+the arm_services node)."""
+
+from __future__ import annotations
+
+import time
+
+import rospy
+from trajectory_msgs.msg import JointTrajectory
+
+from ow_lander import conversions as conv
+from ow_lander.arm_observer_node import ArmObserver
+from ow_lander.config import ExecutionConfig
+from ow_lander.sim_clock_node import SimClock, TrajectoryDeliveryError
+from ow_lander.trajectory import Trajectory
+
+
+class TrajectoryDelivery:
+    """Sends trajectories to the simulation's joint trajectory controller.
+
+    Publishes: ``/sim/joint_trajectory`` (trajectory_msgs/JointTrajectory).
+    Calls: ``/sim/pause``, ``/sim/resume`` (std_srvs/Trigger) around a delivery, through
+        :attr:`sim_clock` (:class:`~ow_lander.sim_clock_node.SimClock`).
+
+    Args:
+        config: the ``execution/*`` parameters.
+        observer: the joint states (the newest stamp, and when they fall quiet).
+    """
+
+    def __init__(self, config: ExecutionConfig, observer: ArmObserver) -> None:
+        self.config = config
+        self.observer = observer
+        self.sim_clock = SimClock(config.service_wait_s)
+        self.publisher = rospy.Publisher("/sim/joint_trajectory", JointTrajectory, queue_size=10)
+
+    def send(self, trajectory: Trajectory) -> float:
+        """Hand ``trajectory`` to the simulation; return when (sim time, s) it starts.
+
+        A simulation running many times faster than real time could pass the start time before
+        the message arrives, so its clock is paused while the message is delivered (when it
+        offers ``/sim/pause`` and ``/sim/resume``), and resumed only if it was running. A
+        simulation that sends receipts starts the trajectory when it queues it, clock stopped,
+        and its receipt says when: the start is then exact whatever the machine's load.
+        Otherwise the start is ``start_delay_s`` after the newest joint state.
+
+        Raises:
+            TrajectoryDeliveryError: the simulation does not subscribe to the trajectory topic,
+                sent no receipt, or ignored the trajectory.
+        """
+        cfg = self.config
+        deadline = time.monotonic() + cfg.service_wait_s
+        while self.publisher.get_num_connections() == 0:  # else the message is lost
+            if time.monotonic() > deadline:
+                msg = (
+                    "the simulation does not subscribe to /sim/joint_trajectory "
+                    f"(waited {cfg.service_wait_s} s)"
+                )
+                raise TrajectoryDeliveryError(msg)
+            time.sleep(0.01)
+        paused_here = self.sim_clock.pause()
+        paused = paused_here is not None
+        try:
+            if paused and self.sim_clock.sends_receipts():
+                token = self.sim_clock.new_token()
+                self.publisher.publish(conv.trajectory_msg(trajectory, 0.0, token))
+                return float(self.sim_clock.wait_received(token).to_sec())
+            if paused:
+                self.observer.wait_quiet(cfg.delivery_wait_s)
+            t_start = self.observer.newest_stamp() + cfg.start_delay_s
+            self.publisher.publish(conv.trajectory_msg(trajectory, t_start))
+            if paused:
+                time.sleep(cfg.delivery_wait_s)  # no receipts: time for the delivery
+            return t_start
+        finally:
+            if paused_here:
+                self.sim_clock.resume()

@@ -1,0 +1,127 @@
+"""The simulation thread in lockstep (no ROS): it steps only as far as its clients allow, applies
+their commands at the step they were decided for, stops at a hold, and gives the same joint
+trajectory however late the acknowledgements come."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from ow_lander.description import DEFAULT_GROUND_Z
+from ow_sim_bullet.config import SimConfig
+from ow_sim_bullet.outputs import SimOutputs
+from ow_sim_bullet.runner import SimRunner
+from ow_sim_bullet.sim_core import BulletSim
+from ow_sim_bullet.terrains import flat
+
+LATENCY = 0.05
+
+
+class _Recorder(SimOutputs):
+    """Outputs that keep each step's (stamp, positions) instead of publishing them."""
+
+    def __init__(self, sim: BulletSim) -> None:  # nothing to publish to
+        self.sim = sim
+        self.joint_stamp = -1.0
+        self.states: list[tuple[float, np.ndarray]] = []
+
+    def publish(self, force: bool = False) -> None:
+        sample = self.sim.sample
+        self.joint_stamp = sample.time
+        self.states.append((sample.time, sample.position.copy()))
+
+    def after_step(self) -> None:
+        self.publish()
+
+    def flush(self) -> None:
+        pass
+
+    def publish_terrain_if_due(self) -> None:
+        pass
+
+
+@pytest.fixture()
+def runner():
+    sim = BulletSim(SimConfig(lockstep_latency_s=LATENCY), flat(DEFAULT_GROUND_Z))
+    run = SimRunner(sim, _Recorder(sim), 0.0, True, lambda: False, log=lambda _: None)
+    thread = threading.Thread(target=run.run, daemon=True)
+    thread.start()
+    yield run
+    run.stop()
+    thread.join(timeout=5.0)
+    sim.close()
+
+
+def test_stepping_stops_at_a_hold_and_goes_on_once_released(runner):
+    runner.lockstep_register("arm", enable=True, hold=True)
+    assert runner.step_paused(10) == pytest.approx(0.0)  # held where it registered
+    runner.lockstep_ack("arm", 0.0, 0.03, [])
+    assert runner.step_paused(10) == pytest.approx(0.03)
+    _, stamp, clients, blocked = runner.lockstep_status()
+    assert (clients, blocked) == (["arm"], ("arm", "hold"))
+    assert stamp == pytest.approx(0.02)  # the last state published, of the step from 0.02
+
+
+def test_a_late_acknowledgement_holds_the_simulation_back_until_it_comes(runner):
+    runner.lockstep_register("arm", enable=True, hold=False)
+    runner.resume()
+    deadline = time.monotonic() + 5.0
+    while runner.lockstep_status()[3] is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    now, _, _, blocked = runner.lockstep_status()
+    assert blocked == ("arm", "ack")
+    assert now == pytest.approx(LATENCY + 0.01)  # registered at 0: one latency and a step on
+    runner.lockstep_ack("arm", 0.5, None, [])
+    while runner.lockstep_status()[0] < 0.55 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert runner.lockstep_status()[0] == pytest.approx(0.5 + LATENCY + 0.01)
+
+
+def _run_with_acks(runner: SimRunner, delay_s: float) -> list[tuple[float, np.ndarray]]:
+    """Acknowledge every state (``delay_s`` of wall time late), commanding the shoulder yaw to
+    0.3 rad on the state of 0.1 s; the recorded joint states up to 1 s."""
+    outputs = runner.outputs
+    assert isinstance(outputs, _Recorder)
+    runner.lockstep_register("arm", enable=True, hold=False)
+    runner.resume()
+    acked = 0
+    while True:
+        states = list(outputs.states)
+        if acked < len(states):
+            stamp = states[acked][0]
+            time.sleep(delay_s)
+            commands = [("j_shou_yaw", 0.3)] if abs(stamp - 0.1) < 1e-6 else []
+            runner.lockstep_ack("arm", stamp, None, commands)
+            acked += 1
+            if stamp >= 1.0:
+                break
+        else:
+            time.sleep(0.0005)
+    runner.pause()
+    return [(t, q) for t, q in outputs.states if t <= 1.0]
+
+
+def test_the_same_acknowledgements_give_the_same_motion_however_late_they_come():
+    trajectories = []
+    for delay_s in (0.0, 0.003):
+        sim = BulletSim(SimConfig(lockstep_latency_s=LATENCY), flat(DEFAULT_GROUND_Z))
+        run = SimRunner(sim, _Recorder(sim), 0.0, True, lambda: False, log=lambda _: None)
+        thread = threading.Thread(target=run.run, daemon=True)
+        thread.start()
+        try:
+            trajectories.append(_run_with_acks(run, delay_s))
+        finally:
+            run.stop()
+            thread.join(timeout=5.0)
+            sim.close()
+    fast, slow = trajectories
+    assert [t for t, _ in fast] == [t for t, _ in slow]
+    for (t, q_fast), (_, q_slow) in zip(fast, slow, strict=True):
+        assert np.array_equal(q_fast, q_slow), f"joint states differ at t={t:.2f} s"
+    # The command took effect at the step from 0.1 + latency: the yaw moves from there on.
+    yaw = sim.names.index("j_shou_yaw")
+    moved = [t for t, q in fast if abs(q[yaw] - fast[0][1][yaw]) > 1e-6]
+    assert moved[0] == pytest.approx(0.1 + LATENCY + 0.01)
