@@ -16,6 +16,7 @@ import pytest
 import yaml
 
 from ow_lander.description import ARM_JOINTS
+from ow_mission.run_compare import differences
 
 TINY_MISSION = {
     "terrain": "flat:-0.155",
@@ -76,10 +77,10 @@ def results(directory: Path) -> list[dict]:
 
 @pytest.fixture(scope="module")
 def local(tmp_path_factory):
-    """A 2-mission campaign on the local engine: mission 0 first, then the campaign directory
-    alone resumes it (mission 1 only)."""
+    """A 3-mission campaign on the local engine: mission 0 first, then the campaign directory
+    alone resumes it (missions 1 and 2 only)."""
     tmp = tmp_path_factory.mktemp("campaign_local")
-    path = campaign(tmp, "local", missions=2)
+    path = campaign(tmp, "local", missions=3)
     first = rosrun_campaign(str(path), "--missions", "0", cwd=tmp)
     directory = tmp / "campaigns" / "local"
     second = rosrun_campaign(str(directory), cwd=tmp)
@@ -104,12 +105,12 @@ def on_ray(tmp_path_factory):
 
 def test_a_resumed_campaign_runs_only_what_is_missing(local):
     directory, first, second = local
-    assert "0 of 2 missions done, 1 to run (local engine)" in first
-    assert "1 of 2 missions done, 1 to run (local engine)" in second
+    assert "0 of 3 missions done, 1 to run (local engine)" in first
+    assert "1 of 3 missions done, 2 to run (local engine)" in second
     assert "mission 001:" in second and "mission 000:" not in second
-    assert [r["index"] for r in results(directory)][1] == 1
-    assert sorted(r["index"] for r in results(directory)) == [0, 1]
-    for k in range(2):  # each mission ran once: one run directory each
+    assert results(directory)[0]["index"] == 0
+    assert sorted(r["index"] for r in results(directory)) == [0, 1, 2]
+    for k in range(3):  # each mission ran once: one run directory each
         runs = [p for p in (directory / "missions" / f"00{k}").iterdir() if p.is_dir()]
         assert len(runs) == 1, runs
 
@@ -117,8 +118,8 @@ def test_a_resumed_campaign_runs_only_what_is_missing(local):
 def test_local_campaign_report(local):
     directory, _, _ = local
     report = json.loads((directory / "report.json").read_text())
-    assert report["missions_done"] == 2
-    assert report["missions_succeeded"] + report["missions_failed"] == 2
+    assert report["missions_done"] == 3
+    assert report["missions_succeeded"] + report["missions_failed"] == 3
     done = [r for r in results(directory) if r["success"]]
     ops = {op["step"]: op for op in report["operations"]}
     if done:
@@ -135,7 +136,7 @@ def test_local_campaign_report(local):
         assert failed["command"].startswith("rosrun ow_mission mission ")
         assert Path(failed["command"].split()[-1]).is_file()
     text = (directory / "report.md").read_text()
-    assert "2 of 2 missions done" in text
+    assert "3 of 3 missions done" in text
     assert "| stow |" in text or not done
     for figure in report["figures"]:
         assert (directory / figure).stat().st_size > 1000
@@ -148,6 +149,22 @@ def test_each_mission_file_replays_alone(local):
         assert mission["seed"] == record["seed"]
         assert mission["output_dir"] == str(Path(record["mission_file"]).parent)
         assert record["command"] == f"rosrun ow_mission mission {record['mission_file']}"
+
+
+def test_a_mission_replayed_from_its_file_is_the_same_run(local):
+    """Issue 16: the replay command of a campaign's mission gives the identical result: every
+    report number and every /joint_states, /power and F/T message."""
+    directory, _, _ = local
+    record = results(directory)[0]
+    folder = Path(record["mission_file"]).parent
+    before = {p for p in folder.iterdir() if p.is_dir()}
+    run = subprocess.run(
+        record["command"].split(), capture_output=True, text=True, timeout=900, check=False
+    )
+    replays = [p for p in folder.iterdir() if p.is_dir() and p not in before]
+    assert len(replays) == 1, run.stdout[-3000:] + run.stderr[-3000:]
+    assert Path(record["run_dir"]) in before
+    assert differences(Path(record["run_dir"]), replays[0]) == []
 
 
 def test_ray_campaign_report(on_ray):

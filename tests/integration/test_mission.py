@@ -15,6 +15,7 @@ import json
 import math
 import subprocess
 import xml.etree.ElementTree as ET
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,6 +30,8 @@ from ow_lander.conversions import height_map_from_msg
 from ow_lander.model import URDF_PATH, LanderModel
 from ow_lander.operations import DOCK_CENTRE, POUR_TILT
 from ow_mission.mission import MISSION_TELEMETRY_HZ
+from ow_mission.mission_config import DEFAULT_MISSION_FILE
+from ow_mission.run_compare import TOPICS, differences, report_numbers
 from ow_power.analysis import analyze, window_figures
 from ow_sim_bullet.terrains import parse_terrain_spec
 
@@ -79,6 +82,7 @@ class Run:
 
 
 def _run_mission(directory: Path, **keys: Any) -> Run:
+    # Renders off: they only illustrate the report (and take a minute of the suite's time).
     mission = {**keys, "output_dir": str(directory / "runs"), "renders": False}
     path = directory / "mission.yaml"
     path.write_text(yaml.safe_dump(mission))
@@ -109,32 +113,44 @@ def _messages(
                 yield msg, t.to_sec()
 
 
+def _default_mission() -> dict[str, Any]:
+    """The default mission file (``make demo``'s): the procedure on europa:7 at (1.65, 0) m."""
+    keys = yaml.safe_load(DEFAULT_MISSION_FILE.read_text())
+    expected = {"x": X, "y": Y, "trench_depth": TRENCH_DEPTH, "trench_length": TRENCH_LENGTH}
+    assert {k: keys[k] for k in expected} == expected
+    assert (keys["terrain"], keys["seed"]) == ("europa", 7)
+    assert (keys["bottom_grind_depth"], keys["parallel"], keys["dig"]) == (0.05, True, "linear")
+    return keys
+
+
 @pytest.fixture(scope="module")
 def mission(tmp_path_factory):
-    """The default procedure on europa:7 at (1.65, 0) m, run once."""
-    return _run_mission(
-        tmp_path_factory.mktemp("mission"),
-        name="integration test",
-        terrain=TERRAIN,
-        x=X,
-        y=Y,
-        trench_depth=TRENCH_DEPTH,
-        trench_length=TRENCH_LENGTH,
-        bottom_grind_depth=BOTTOM_GRIND_DEPTH,
-        parallel=True,
-        dig="linear",
-    )
+    """The default mission, run once."""
+    return _run_mission(tmp_path_factory.mktemp("mission"), **_default_mission())
 
 
 @pytest.fixture(scope="module")
-def no_ground(tmp_path_factory):
-    """A mission whose guarded move searches 0.2 m above a ground 0.9 m down."""
-    return _run_mission(
-        tmp_path_factory.mktemp("no_ground"),
-        name="no ground",
-        terrain="flat:-0.9",
-        search_distance=0.2,
-    )
+def beside(tmp_path_factory):
+    """The default mission again, started together with a mission whose guarded move searches
+    0.2 m above a ground 0.9 m down (it unstows, finds nothing and stops, while the default
+    one unstows and finds the ground beside it; under make test the other worker's tests run
+    beside both): (the default mission's run, the other's)."""
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        again = pool.submit(_run_mission, tmp_path_factory.mktemp("again"), **_default_mission())
+        other = pool.submit(
+            _run_mission,
+            tmp_path_factory.mktemp("no_ground"),
+            name="no ground",
+            terrain="flat:-0.9",
+            search_distance=0.2,
+        )
+        return again.result(), other.result()
+
+
+@pytest.fixture(scope="module")
+def no_ground(beside):
+    """The mission that finds no ground (run beside the default one)."""
+    return beside[1]
 
 
 def test_every_step_succeeds(mission):
@@ -366,3 +382,31 @@ def test_the_bags_carry_oceanwaters_telemetry(mission):
         assert list(msg.value) == [state[n] for n in order]
     for topic in ("/arm_pose", "/arm_end_effector_force_torque", "/arm_joint_torques"):
         assert next(_messages(mission.bags, topic), None) is not None, topic
+
+
+def test_a_run_is_a_function_of_its_mission_file(mission, beside):
+    """Issue 16: the default mission twice, the second time while another mission runs beside
+    it, gives the same report numbers and the same /joint_states and /power, bit for bit."""
+    again, other = beside
+    assert again.returncode == 0, again.output
+    first, second = report_numbers(mission.report), report_numbers(again.report)
+    assert len(first) > 100  # every step's times, energies, positions, the trench, ...
+    assert {k: (v, second.get(k)) for k, v in first.items() if second.get(k) != v} == {}
+    assert first.keys() == second.keys()
+    for topic in TOPICS:  # read with the ROS bag API here, with rosbags in run_compare
+        a, b = _raw(mission.bags, topic), _raw(again.bags, topic)
+        assert len(a) > 10000, topic  # 100 Hz over the mission's ~330 s (50 Hz F/T)
+        differ = next((i for i, (x, y) in enumerate(zip(a, b, strict=False)) if x != y), None)
+        assert (len(a), differ) == (len(b), None), f"{topic}: first difference at message {differ}"
+    assert differences(mission.run_dir, again.run_dir) == []
+    # The neighbour found no ground and stopped: its run differs (the comparison can fail).
+    assert differences(mission.run_dir, other.run_dir, ["/joint_states"]) != []
+
+
+def _raw(bags: list[Path], topic: str) -> list[bytes]:
+    """Every message of ``topic`` as recorded, serialised (header and all), in order."""
+    data = []
+    for path in bags:
+        with rosbag.Bag(str(path)) as bag:
+            data += [raw[1] for _, raw, _ in bag.read_messages(topics=[topic], raw=True)]
+    return data

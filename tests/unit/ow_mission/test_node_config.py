@@ -63,3 +63,18 @@ def test_merge_replaces_lists_and_leaves_its_inputs_alone():
     merged = merge(base, {"topics": ["/b"], "nested": {"y": 3}})
     assert merged == {"topics": ["/b"], "nested": {"x": 1, "y": 3}}
     assert base == {"topics": ["/a"], "nested": {"x": 1, "y": 2}}
+
+
+def test_the_mission_runs_in_lockstep_unless_node_params_turn_it_off(tmp_path):
+    from ow_mission.mission import node_parameters
+    from ow_mission.mission_config import MissionConfig
+
+    params = node_parameters(MissionConfig.from_dict({}), tmp_path)
+    assert params["sim"]["lockstep_clients"] == ["/arm_services"]
+    assert params["arm_services"]["execution"]["lockstep"] is True
+    assert params["arm_services"]["execution"]["lockstep_hold"] is True
+    off = {"node_params": {"arm_services": {"execution": {"lockstep": False}}}}
+    params = node_parameters(MissionConfig.from_dict(off), tmp_path)
+    # Else the simulation would wait at t = 0 for arm services that never register.
+    assert params["sim"]["lockstep_clients"] == []
+    assert params["arm_services"]["execution"]["lockstep_hold"] is False

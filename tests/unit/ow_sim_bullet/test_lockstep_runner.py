@@ -125,3 +125,16 @@ def test_the_same_acknowledgements_give_the_same_motion_however_late_they_come()
     yaw = sim.names.index("j_shou_yaw")
     moved = [t for t, q in fast if abs(q[yaw] - fast[0][1][yaw]) > 1e-6]
     assert moved[0] == pytest.approx(0.1 + LATENCY + 0.01)
+
+
+def test_a_nan_set_point_holds_the_joint_where_it_is_when_applied(runner):
+    sim = runner.sim
+    runner.lockstep_register("arm", enable=True, hold=False)
+    sim_yaw = sim.names.index("j_shou_yaw")
+    runner.lockstep_ack("arm", 0.0, None, [("j_shou_yaw", -1.0)])  # starts moving at 0.05
+    runner.lockstep_ack("arm", 0.2, None, [("j_shou_yaw", float("nan"))])  # stop at 0.25
+    runner.step_paused(25)  # to 0.25: the hold is applied before the step from 0.25
+    there = sim.position("j_shou_yaw")
+    runner.step_paused(1)
+    assert sim.controller.setpoint[sim_yaw] == there  # exactly where it was, not -1
+    assert -1.49 < there < -1.01  # it was still on its way from -1.5 (stowed) to -1

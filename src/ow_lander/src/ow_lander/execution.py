@@ -113,11 +113,15 @@ class Decision:
         setpoints: rad by joint name, to command now (the streaming interface), or None.
         hold: rad by joint name, to command so that the arm stops there, or None.
         result: the outcome once the execution is over; None while it goes on.
+        in_place: the hold means "where the arm is" (``hold`` is where it was at the joint
+            state decided on): a command that takes effect later (the lockstep's latency) holds
+            each joint where it is then, rather than pulling the arm back.
     """
 
     setpoints: dict[str, float] | None = None
     hold: dict[str, float] | None = None
     result: ExecutionResult | None = None
+    in_place: bool = False
 
 
 @dataclass
@@ -402,7 +406,8 @@ class ExecutionMonitor:
                 f"at t={t:.1f} s (limit {cfg.max_tracking_error_rad} rad); the arm holds where "
                 "it is"
             )
-            return Decision(setpoints, _by_name(names, here), ExecutionResult(False, message, t))
+            failed = ExecutionResult(False, message, t)
+            return Decision(setpoints, _by_name(names, here), failed, in_place=True)
         if t >= self.trajectory.duration and error[worst] <= cfg.goal_tolerance_rad:
             reached = ExecutionResult(True, "reached the final set-point", t)
             return Decision(setpoints, None, self._finished(reached))
@@ -411,7 +416,8 @@ class ExecutionMonitor:
                 f"timeout: final set-point not reached within {self.limit:.1f} s "
                 f"(worst joint {names[worst]} {error[worst]:.3f} rad away)"
             )
-            return Decision(setpoints, _by_name(names, here), ExecutionResult(False, message, t))
+            failed = ExecutionResult(False, message, t)
+            return Decision(setpoints, _by_name(names, here), failed, in_place=True)
         return Decision(setpoints)
 
     def stalled(self) -> Decision:
@@ -462,7 +468,7 @@ class ExecutionMonitor:
         rest = _by_name(names, here)
         stopped = self.fault is None
         result = ExecutionResult(False, message, t, stopped=stopped, hold=rest, fault=self.fault)
-        return Decision(None, rest, result)
+        return Decision(None, rest, result, in_place=True)
 
     def _contact(self, here: FloatArray, t: float) -> Decision:
         """Ground found: hold where the arm was at the contact stamp. The simulation may have

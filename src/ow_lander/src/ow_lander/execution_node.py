@@ -4,6 +4,7 @@ node): trajectories go to the simulation, its observations to an
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 
@@ -172,7 +173,7 @@ class ArmExecutor(ArmObserver):
                 if arrived:
                     self._wait_stream(monitor, stamp)
                 decision = monitor.decide(stamp, joints) if arrived else monitor.stalled()
-            self._apply(decision, stamp)
+            self._apply(decision, stamp, now=monitor.stop_time is not None)
             if decision.result is not None:
                 return decision.result
         return ExecutionResult(False, "shutting down")
@@ -207,16 +208,23 @@ class ArmExecutor(ArmObserver):
             self._stopped.wait(timeout=self.config.joint_state_timeout_s)
         return monitor is not None
 
-    def _apply(self, decision: Decision, stamp: float) -> None:
+    def _apply(self, decision: Decision, stamp: float, now: bool = False) -> None:
         """Carry out the decision on the joint state of ``stamp`` (s, sim): in the lockstep, as
         its acknowledgement (set-points then hold, from ``stamp`` + latency; with
         ``lockstep_hold`` the simulation stops ``lockstep_settle_s`` later when the execution
-        ends), else published at once."""
+        ends), else published at once. ``now``: published at once anyway (a stop's braking:
+        the clock is paused while the stop is requested, so it brakes from the request, not a
+        latency later; a stop is not part of a deterministic run)."""
         lockstep = self._lockstep
-        if lockstep is None:
+        if lockstep is None or now:
             self._command(decision)
-            return
-        commands = {**(decision.setpoints or {}), **(decision.hold or {})}
+            decision = Decision(result=decision.result)
+            if lockstep is None:
+                return
+        hold = decision.hold or {}
+        if decision.in_place:  # where each joint is when it takes effect, not a latency ago
+            hold = dict.fromkeys(hold, math.nan)
+        commands = {**(decision.setpoints or {}), **hold}
         if decision.result is not None and self.config.lockstep_hold:
             lockstep.hold(stamp, commands, self.config.lockstep_settle_s)
         else:

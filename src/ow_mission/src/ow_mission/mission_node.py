@@ -126,7 +126,7 @@ class MissionRunner:
     def _start(self, stack: RosStack) -> list[NodeProcess]:
         rospy.init_node("mission", disable_signals=True)
         params = node_parameters(self.config, self.run_dir)
-        self._hold = bool(params["arm_services"].get("execution", {}).get("lockstep_hold"))
+        self._hold = bool(params["arm_services"]["execution"].get("lockstep_hold"))
         # Started side by side (the simulation paused), then waited for: each node spends a
         # second or two importing, and they need nothing from one another to start.
         ready: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {

@@ -4,6 +4,7 @@ threads enqueue commands or wait for their results. No ROS here."""
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections import deque
@@ -334,6 +335,8 @@ class SimRunner:
             due = self.lockstep.due(self.sim.time)
         for joint, position in due:
             try:
+                if math.isnan(position):  # hold the joint where it is now
+                    position = self.sim.position(joint)
                 clipped = self.sim.set_setpoint(joint, position)
             except CommandError as error:
                 self._log(f"sim: lockstep command ignored: {error}")

@@ -36,7 +36,7 @@ from ow_lander.terrain import HeightMap
 from ow_sim_bullet.bullet_terrain import BulletTerrain
 from ow_sim_bullet.carving import TerrainCarver, collision_surface_points
 from ow_sim_bullet.config import PidGains, SimConfig
-from ow_sim_bullet.errors import ConfigError
+from ow_sim_bullet.errors import CommandError, ConfigError
 from ow_sim_bullet.faults import LOCK_DAMPER, JointLocks, WristFaults
 from ow_sim_bullet.joint_control import FloatArray, JointController
 from ow_sim_bullet.joints import ClippedSetpoint, JointSample
@@ -260,6 +260,20 @@ class BulletSim:
             self.controller.setpoint,
         )
         self.tracker.reset()
+
+    def position(self, joint: str) -> float:
+        """rad, where ``joint`` is now (after the last step).
+
+        Raises:
+            CommandError: unknown joint.
+        """
+        if joint not in self.names:
+            msg = f"unknown joint {joint!r}"
+            raise CommandError(msg)
+        state = pb.getJointState(
+            self.robot, self._bullet_index[self.names.index(joint)], physicsClientId=self.client
+        )
+        return float(state[0])
 
     def set_setpoint(self, joint: str, position: float) -> ClippedSetpoint | None:
         """Command one joint's position set-point (rad); cancels its trajectory. A set-point

@@ -1,0 +1,99 @@
+"""Whether two mission runs are the same run: the numbers of their ``report.json`` (all but the
+wall-clock ones) and the messages of their bags. A mission is a function of its file
+(docs/determinism.md), so a replay of a failed mission must match the original exactly. No ROS:
+the bags are read with ``rosbags``.
+
+    python -m ow_mission.run_compare <run dir> <run dir> [topic ...]
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from rosbags.highlevel import AnyReader
+
+#: report.json entries that measure the machine, not the run.
+WALL_CLOCK_KEYS = frozenset(
+    {
+        "wall_time_s",
+        "real_time_factor",
+        "peak_memory_mb",
+        "report_seconds",
+        "planning_time_s",
+        "cpu_seconds_to_make",
+        "seconds_to_make",
+    }
+)
+#: Topics compared by default: the simulation's and the power model's streams.
+TOPICS = ("/joint_states", "/power", "/arm_end_effector_force_torque")
+
+
+def report_numbers(report: Any, path: str = "") -> dict[str, float]:
+    """Every number of a ``report.json`` (loaded) by its path (``.steps[2].sim_end_s``), but
+    the wall-clock ones and the mission's configuration (where the run was written)."""
+    if isinstance(report, dict):
+        out: dict[str, float] = {}
+        for key, item in report.items():
+            if key not in WALL_CLOCK_KEYS and key != "config":
+                out.update(report_numbers(item, f"{path}.{key}"))
+        return out
+    if isinstance(report, list):
+        out = {}
+        for index, item in enumerate(report):
+            out.update(report_numbers(item, f"{path}[{index}]"))
+        return out
+    if isinstance(report, bool) or not isinstance(report, int | float):
+        return {}
+    return {path: report}
+
+
+def raw_messages(run_dir: Path, topic: str) -> list[bytes]:
+    """Every message of ``topic`` in the run's bags, serialised as recorded, in order."""
+    bags = sorted((run_dir / "bags").glob("*.bag"))
+    if not bags:
+        return []
+    with AnyReader(bags) as reader:
+        connections = [c for c in reader.connections if c.topic == topic]
+        return [bytes(raw) for _, _, raw in reader.messages(connections=connections)]
+
+
+def differences(a: Path, b: Path, topics: Iterable[str] = TOPICS) -> list[str]:
+    """What differs between runs ``a`` and ``b`` (run directories); empty: the same run."""
+    found = []
+    numbers_a = report_numbers(json.loads((a / "report.json").read_text()))
+    numbers_b = report_numbers(json.loads((b / "report.json").read_text()))
+    for key in sorted(numbers_a.keys() | numbers_b.keys()):
+        if numbers_a.get(key) != numbers_b.get(key):
+            found.append(f"report{key}: {numbers_a.get(key)!r} != {numbers_b.get(key)!r}")
+    for topic in topics:
+        messages_a, messages_b = raw_messages(a, topic), raw_messages(b, topic)
+        first = next(
+            (i for i, (x, y) in enumerate(zip(messages_a, messages_b, strict=False)) if x != y),
+            None,
+        )
+        if first is not None:
+            found.append(f"{topic}: message {first} differs")
+        elif len(messages_a) != len(messages_b):
+            found.append(f"{topic}: {len(messages_a)} messages != {len(messages_b)}")
+    return found
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Print what differs between two runs; 0 when they are the same run, 1 if not."""
+    args = sys.argv[1:] if argv is None else argv
+    if len(args) < 2:
+        print(__doc__)
+        return 2
+    found = differences(Path(args[0]), Path(args[1]), args[2:] or TOPICS)
+    for line in found:
+        print(line)
+    print("the same run" if not found else f"{len(found)} differences")
+    return 1 if found else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
