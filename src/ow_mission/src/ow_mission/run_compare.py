@@ -28,8 +28,20 @@ WALL_CLOCK_KEYS = frozenset(
         "seconds_to_make",
     }
 )
-#: Topics compared by default: the simulation's and the power model's streams.
-TOPICS = ("/joint_states", "/power", "/arm_end_effector_force_torque")
+#: Topics compared by default: the simulation's streams, power, the battery and fault telemetry.
+TOPICS = (
+    "/joint_states",
+    "/power",
+    "/arm_end_effector_force_torque",
+    "/sim/scoop_wrench",
+    "/sim/grinder_wrench",
+    "/battery_state_of_charge",
+    "/battery_remaining_useful_life",
+    "/battery_temperature",
+    "/arm_faults_status",
+    "/power_faults_status",
+    "/system_faults_status",
+)
 
 
 def report_numbers(report: Any, path: str = "") -> dict[str, float]:
@@ -52,13 +64,22 @@ def report_numbers(report: Any, path: str = "") -> dict[str, float]:
 
 
 def raw_messages(run_dir: Path, topic: str) -> list[bytes]:
-    """Every message of ``topic`` in the run's bags, serialised as recorded, in order."""
+    """Every message of ``topic`` in the run's bags, serialised as recorded, in order. A
+    latched topic's last message is repeated at the start of each bag file (each file stands
+    alone), and where a file starts depends on which topic's message came first: such a repeat
+    (the same bytes as the message before it) is left out."""
     bags = sorted((run_dir / "bags").glob("*.bag"))
     if not bags:
         return []
+    messages: list[bytes] = []
     with AnyReader(bags) as reader:
         connections = [c for c in reader.connections if c.topic == topic]
-        return [bytes(raw) for _, _, raw in reader.messages(connections=connections)]
+        for connection, _, raw in reader.messages(connections=connections):
+            data = bytes(raw)
+            latched = getattr(connection.ext, "latching", 0)
+            if not (latched and messages and messages[-1] == data):
+                messages.append(data)
+    return messages
 
 
 def differences(a: Path, b: Path, topics: Iterable[str] = TOPICS) -> list[str]:
