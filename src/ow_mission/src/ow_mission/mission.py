@@ -381,7 +381,7 @@ def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str,
     }
     params = stack_parameters(mission, config.node_params)
     execution = params["arm_services"].setdefault("execution", {})
-    if not execution.get("lockstep", True):  # node_params turned the lockstep off: no waiting
+    if not execution.get("lockstep"):  # node_params turned the lockstep off: no waiting
         execution["lockstep_hold"] = False
         params["sim"]["lockstep_clients"] = []
     return params
