@@ -7,8 +7,11 @@ user runs it, checked against independent sources rather than against its own re
 * the delivery: forward kinematics of the recorded ``/joint_states`` at the end of the step;
 * the energies: the ``ow_power`` analysis of the recorded ``/power`` over each step's window.
 
-A second mission cannot find the ground and must stop there, keeping what it recorded.
-Each mission runs once per module (renders off); the checks only read its run directory.
+A second mission cannot find the ground and must stop there, keeping what it recorded. The
+default mission runs a second time, beside the report's mission (through OceanWATERS' actions,
+renders on), and must be the same run as the first (issue 16). The report's checks: every
+image it links exists, its energies are the power plot's, its figures say what the run did.
+Each mission runs once per module; the checks only read its run directory.
 """
 
 import json
@@ -25,12 +28,14 @@ import pytest
 import rosbag
 import rospy
 import yaml
+from PIL import Image
 
 from ow_lander.conversions import height_map_from_msg
 from ow_lander.model import URDF_PATH, LanderModel
 from ow_lander.operations import DOCK_CENTRE, POUR_TILT
 from ow_mission.mission import MISSION_TELEMETRY_HZ
 from ow_mission.mission_config import DEFAULT_MISSION_FILE
+from ow_mission.report import image_links
 from ow_mission.run_compare import differences, report_numbers
 from ow_power.analysis import analyze, window_figures
 from ow_sim_bullet.terrains import parse_terrain_spec
@@ -82,8 +87,8 @@ class Run:
 
 
 def _run_mission(directory: Path, **keys: Any) -> Run:
-    # Renders off: they only illustrate the report (and take a minute of the suite's time).
-    mission = {**keys, "output_dir": str(directory / "runs"), "renders": False}
+    # Renders off unless asked for: they only illustrate the report (and take time).
+    mission = {"renders": False, **keys, "output_dir": str(directory / "runs")}
     path = directory / "mission.yaml"
     path.write_text(yaml.safe_dump(mission))
     proc = subprocess.run(
@@ -131,26 +136,38 @@ def mission(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def beside(tmp_path_factory):
-    """The default mission again, started together with a mission whose guarded move searches
-    0.2 m above a ground 0.9 m down (it unstows, finds nothing and stops, while the default
-    one unstows and finds the ground beside it; under make test the other worker's tests run
-    beside both): (the default mission's run, the other's)."""
+    """The default mission again, while the report's mission runs beside it: the default
+    procedure through OceanWATERS' actions (``interface: actions``), renders on (under make test
+    the other worker's tests run beside both): (the default mission's run, the report's)."""
     with ThreadPoolExecutor(max_workers=2) as pool:
         again = pool.submit(_run_mission, tmp_path_factory.mktemp("again"), **_default_mission())
-        other = pool.submit(
+        report = pool.submit(
             _run_mission,
-            tmp_path_factory.mktemp("no_ground"),
-            name="no ground",
-            terrain="flat:-0.9",
-            search_distance=0.2,
+            tmp_path_factory.mktemp("report"),
+            name="report test",
+            terrain=TERRAIN,
+            interface="actions",
+            renders=True,
         )
-        return again.result(), other.result()
+        return again.result(), report.result()
 
 
 @pytest.fixture(scope="module")
-def no_ground(beside):
-    """The mission that finds no ground (run beside the default one)."""
-    return beside[1]
+def run(beside):
+    """The report's mission: (exit code, output, run directory, report.json)."""
+    report = beside[1]
+    return report.returncode, report.output, report.run_dir, report.report
+
+
+@pytest.fixture(scope="module")
+def no_ground(tmp_path_factory):
+    """A mission whose guarded move searches 0.2 m above a ground 0.9 m down."""
+    return _run_mission(
+        tmp_path_factory.mktemp("no_ground"),
+        name="no ground",
+        terrain="flat:-0.9",
+        search_distance=0.2,
+    )
 
 
 def test_every_step_succeeds(mission):
@@ -384,10 +401,10 @@ def test_the_bags_carry_oceanwaters_telemetry(mission):
         assert next(_messages(mission.bags, topic), None) is not None, topic
 
 
-def test_a_run_is_a_function_of_its_mission_file(mission, beside):
+def test_a_run_is_a_function_of_its_mission_file(mission, beside, no_ground):
     """Issue 16: the default mission twice, the second time while another mission runs beside
     it, gives the same report numbers and the same /joint_states and /power, bit for bit."""
-    again, other = beside
+    again, _ = beside
     assert again.returncode == 0, again.output
     first, second = report_numbers(mission.report), report_numbers(again.report)
     assert len(first) > 100  # every step's times, energies, positions, the trench, ...
@@ -400,8 +417,8 @@ def test_a_run_is_a_function_of_its_mission_file(mission, beside):
         differ = next((i for i, (x, y) in enumerate(zip(a, b, strict=False)) if x != y), None)
         assert (len(a), differ) == (len(b), None), f"{topic}: first difference at message {differ}"
     assert differences(mission.run_dir, again.run_dir) == []
-    # The neighbour found no ground and stopped: its run differs (the comparison can fail).
-    assert differences(mission.run_dir, other.run_dir, ["/joint_states"]) != []
+    # A mission that found no ground and stopped differs (the comparison can fail).
+    assert differences(mission.run_dir, no_ground.run_dir, ["/joint_states"]) != []
 
 
 def _raw(bags: list[Path], topic: str) -> list[bytes]:
@@ -411,3 +428,74 @@ def _raw(bags: list[Path], topic: str) -> list[bytes]:
         with rosbag.Bag(str(path)) as bag:
             data += [raw[1] for _, raw, _ in bag.read_messages(topics=[topic], raw=True)]
     return data
+
+
+# ------------------------------------------------------------------ the report (actions)
+def test_the_mission_succeeds_and_every_linked_image_exists(run):
+    returncode, output, run_dir, report = run
+    assert returncode == 0, output
+    links = image_links((run_dir / "report.md").read_text())
+    for link in links:
+        assert (run_dir / link).is_file(), link
+    for role in ("power", "trench_profile", "guarded_move", "replay"):
+        assert role in report["figures"], report.get("figure_notes")
+        assert report["figures"][role] in links
+    stills = [f for role, f in report["figures"].items() if role.startswith("still_")]
+    assert len(stills) == 4
+    for still in stills:
+        with Image.open(run_dir / still) as image:
+            assert image.size == (1024, 768)
+    assert report["figure_notes"] == {}
+
+
+def test_the_tables_energies_are_the_plots_labels(run):
+    _, _, run_dir, report = run
+    markdown = (run_dir / "report.md").read_text()
+    for step in report["steps"]:
+        _, signed, absolute = step["power_plot_label"].split("\n")
+        row = next(line for line in markdown.splitlines() if line.startswith(f"| {step['step']} "))
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        assert f"{cells[4]} J signed" == signed
+        assert f"{cells[5]} J |.|" == absolute
+        assert step["mechanical_energy_abs_j"] >= abs(step["mechanical_energy_j"]) - 1e-9
+        assert step["peak_power_w"] > step["peak_mechanical_power_w"]  # with P0 and without
+
+
+def test_the_dig_reached_the_requested_depth(run):
+    _, _, run_dir, report = run
+    assert report["trench"]["worked"], report["trench"]["verdict"]
+    assert "The dig worked" in (run_dir / "report.md").read_text()
+
+
+def test_the_detector_figure_finds_the_contact_the_arm_reported(run):
+    _, _, _, report = run
+    detector = report["guarded_move_detector"]
+    assert detector["contact_s"] is not None
+    assert detector["contact_s"] == pytest.approx(detector["result_s"], abs=0.1), detector
+
+
+def test_the_replay_runs_at_ten_frames_per_second_or_more(run):
+    _, _, run_dir, report = run
+    replay = report["replay"]
+    with Image.open(run_dir / replay["file"]) as gif:
+        assert gif.n_frames == replay["frames"] >= 100
+        assert gif.info["duration"] <= 100  # ms per frame
+
+
+def test_every_step_succeeds_through_the_actions(run):
+    returncode, output, _, report = run
+    assert returncode == 0, output[-3000:]
+    assert [s["step"] for s in report["steps"]] == STEPS
+    for step in report["steps"]:
+        assert step["success"], (step["step"], step["message"])
+        assert step["sim_end_s"] > step["sim_start_s"]
+        assert step["energy_wh"] > 0.0
+    assert report["config"]["interface"] == "actions"
+    assert report["steps"][1]["message"].startswith("ArmFindSurface:")
+
+
+def test_ground_found_lies_on_the_terrain(run):
+    _, _, _, report = run
+    x, y, z = report["steps"][1]["ground_position"]
+    assert report["ground_z"] == pytest.approx(z)
+    assert z == pytest.approx(float(parse_terrain_spec(TERRAIN).height_at(x, y)), abs=0.005)
