@@ -16,7 +16,13 @@ from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
 from ow_lander import conversions as conv
-from ow_lander.description import ALL_JOINTS, ARM_JOINTS, BASE_FRAME, SCOOP_TIP_FRAME
+from ow_lander.description import (
+    ALL_JOINTS,
+    ARM_JOINTS,
+    BASE_FRAME,
+    SCOOP_TIP_FRAME,
+    STAMP_SLACK_S,
+)
 from ow_lander.errors import PlanningError
 from ow_lander.execution import ExecutionMonitor
 from ow_lander.lockstep_node import LockstepClient
@@ -26,9 +32,6 @@ from owl_msgs.msg import ArmEndEffectorForceTorque
 #: Called with (stamp s sim, joints rad by name, wrist force (3,) N, torque (3,) N m) on every
 #: joint state during an execution (the actions' feedback).
 SampleCallback = Callable[[float, dict[str, float], np.ndarray, np.ndarray], None]
-#: s (sim), a guard's stream has reached a joint state's stamp when it is this close (stamps
-#: are rounded to nanoseconds).
-STREAM_SLACK_S = 1e-6
 
 
 class ArmObserver:
@@ -153,7 +156,7 @@ class ArmObserver:
         if stream is not None:
             self._state_changed.wait_for(
                 lambda: (
-                    self._stream_stamps[stream] >= stamp - STREAM_SLACK_S
+                    self._stream_stamps[stream] >= stamp - STAMP_SLACK_S
                     or monitor.stop_time is not None
                 ),
                 self.joint_state_timeout_s,

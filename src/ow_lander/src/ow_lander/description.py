@@ -90,3 +90,7 @@ UNSTOWED: dict[str, float] = {
     "j_hand_yaw": 1.5707,
     "j_scoop_yaw": 0.0,
 }
+
+#: s (sim), two stamps this close are the same instant: ROS stamps are whole nanoseconds, and a
+#: stamp read as float seconds and written back can move by one.
+STAMP_SLACK_S = 1e-6

@@ -30,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ow_lander.config import ExecutionConfig
-from ow_lander.description import ALL_JOINTS, ARM_JOINTS, SCOOP_TIP_FRAME
+from ow_lander.description import ALL_JOINTS, ARM_JOINTS, SCOOP_TIP_FRAME, STAMP_SLACK_S
 from ow_lander.ground_detection import ForceDetector, GroundDetector, WrenchDetector
 from ow_lander.model import LanderModel
 from ow_lander.trajectory import Trajectory
@@ -39,8 +39,6 @@ FloatArray = npt.NDArray[np.float64]
 
 #: Joint states of a guarded descent kept to look up the one at the contact stamp (10 s at 50 Hz).
 JOINT_HISTORY = 500
-#: s (sim), stamps this close count as equal (stamps are rounded to nanoseconds).
-STAMP_SLACK_S = 1e-6
 #: rad/s, a stopping arm is at rest when no joint moves faster than this.
 REST_SPEED = 0.005
 #: rad/s, a joint slower than this at a stop request needs no braking.

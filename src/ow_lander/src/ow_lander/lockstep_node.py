@@ -32,6 +32,7 @@ from collections.abc import Mapping
 
 import rospy
 
+from ow_lander.description import STAMP_SLACK_S
 from ow_msgs.msg import LockstepAck
 from ow_msgs.srv import LockstepRegister, LockstepStatus
 
@@ -42,8 +43,6 @@ STATUS_SERVICE = "/sim/lockstep_status"
 #: acknowledgements queued by rospy's writer thread: none may be lost (the simulation would
 #: wait for it), so the queue is deep (a second at 100 Hz for 1000 s of backlog).
 _ACK_QUEUE = 100000
-#: s (sim), stamps this close count as equal (nanosecond rounding).
-_SLACK_S = 1e-6
 
 
 class LockstepError(Exception):
@@ -130,7 +129,7 @@ class LockstepClient:
             if not self.registered or self.latency is None:
                 return
             self._acked = max(self._acked, stamp)
-            if setpoints or force or self._acked >= self._sent + self.latency / 2 - _SLACK_S:
+            if setpoints or force or self._acked >= self._sent + self.latency / 2 - STAMP_SLACK_S:
                 self._send(setpoints)
 
     def hold(

@@ -18,8 +18,10 @@ import heapq
 import math
 from dataclasses import dataclass, field
 
+from ow_lander.description import STAMP_SLACK_S
+
 #: s of sim time: stamps this close count as equal (float and nanosecond rounding of stamps).
-EPSILON = 1e-6
+EPSILON = STAMP_SLACK_S
 
 
 @dataclass
