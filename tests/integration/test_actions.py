@@ -126,7 +126,7 @@ def run(name: str, goal, feedback=None, timeout: float = 300.0):
     stamps = feedback_stamps(name)
     first = len(stamps)
     c.send_goal(goal, feedback_cb=feedback)
-    assert c.wait_for_result(rospy.Duration(timeout)), f"{name} did not end"
+    assert c.wait_for_end(timeout), f"{name} did not end"
     state = c.get_state()
     # Actions whose feedback has fields (OceanWATERS' ArmUnstow, the Task* but TaskGrind... have
     # none, and no feedback is published for them).
@@ -299,7 +299,7 @@ def test_busy_both_ways(stack, joints):
         response = stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
         assert not response.success
         assert response.message == "busy: ArmMoveJoints goal is running; request refused"
-    assert c.wait_for_result(rospy.Duration(120))
+    assert c.wait_for_end(120)
     assert c.get_state() == GoalStatus.SUCCEEDED
     # A goal while a service request runs.
     answer = []
@@ -345,7 +345,7 @@ def test_bad_goal_is_refused_naming_the_field(stack, name, goal, named):
     # the server rejected at once.
     c = connected_client(name)
     c.send_goal(goal)
-    assert c.wait_for_result(rospy.Duration(30)), f"{name} did not end"
+    assert c.wait_for_end(30), f"{name} did not end"
     state, text = c.get_state(), c.get_goal_status_text()
     assert state == GoalStatus.REJECTED
     assert named in text
@@ -391,7 +391,7 @@ def test_a_clock_the_user_stopped_stays_stopped_while_a_goal_is_delivered(stack,
     finally:
         sub.unregister()
         assert stack.service("/sim/resume", Trigger)().success
-    assert c.wait_for_result(rospy.Duration(120))
+    assert c.wait_for_end(120)
     assert c.get_state() == GoalStatus.SUCCEEDED, c.get_goal_status_text()
     assert np.allclose(joints.latest(), target, atol=0.05)
 
@@ -404,5 +404,5 @@ def test_goals_rejected_at_once_end_for_the_client_every_time(stack):
     bad = owl.ArmMoveCartesianGoal(2, False, Pose(Point(1.7, 0, 0.2), Quaternion(0, 0, 0, 1)))
     for attempt in range(30):
         c.send_goal(bad)
-        assert c.wait_for_result(rospy.Duration(30)), f"goal {attempt} did not end"
+        assert c.wait_for_end(30), f"goal {attempt} did not end"
         assert c.get_state() == GoalStatus.REJECTED

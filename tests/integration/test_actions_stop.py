@@ -75,7 +75,7 @@ def test_cancel_halfway_holds_the_arm(stack, joints):
     _halfway(c, joints, start, target)
     t_cancel = rospy.get_rostime().to_sec()
     c.cancel_goal()
-    assert c.wait_for_result(rospy.Duration(30))
+    assert c.wait_for_end(30)
     assert c.get_state() == GoalStatus.PREEMPTED, c.get_goal_status_text()
     latency, drift, span = _check_held(joints, t_cancel)
     print(f"cancel: stopped {latency:.3f} s sim after the request; drift {drift * 1e3:.3f} mrad")
@@ -97,7 +97,7 @@ def test_arm_stop_stops_a_goal_and_aborts_when_idle(stack, joints):
     t_stop = rospy.get_rostime().to_sec()
     state, _, text = run("ArmStop", owl.ArmStopGoal(), timeout=30)
     assert state == GoalStatus.SUCCEEDED, text
-    assert c.wait_for_result(rospy.Duration(30))
+    assert c.wait_for_end(30)
     assert c.get_state() == GoalStatus.PREEMPTED
     latency, drift, _ = _check_held(joints, t_stop)
     print(f"ArmStop: stopped {latency:.3f} s sim after the request; drift {drift * 1e3:.3f} mrad")

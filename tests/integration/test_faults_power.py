@@ -146,10 +146,10 @@ def test_low_state_of_charge_sets_its_bit_at_the_threshold(stack):
 def test_fault_clear_refuses_a_value_that_is_not_a_goal_error(stack):
     client = action_client("FaultClear", FaultClearAction)
     client.send_goal(FaultClearGoal(fault=SystemFaultsStatus.POWER_EXECUTION_ERROR))
-    assert client.wait_for_result(rospy.Duration(30))
+    assert client.wait_for_end(30)
     assert client.get_state() == GoalStatus.REJECTED
     assert "fault = 256 is not a goal error" in client.get_goal_status_text()
     client.send_goal(FaultClearGoal(fault=SystemFaultsStatus.ARM_GOAL_ERROR))
-    assert client.wait_for_result(rospy.Duration(30))
+    assert client.wait_for_end(30)
     assert client.get_state() == GoalStatus.SUCCEEDED
     assert all(node.alive() for node in stack.nodes)

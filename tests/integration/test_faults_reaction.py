@@ -16,7 +16,6 @@ import time
 
 import numpy as np
 import pytest
-import rospy
 from actionlib_msgs.msg import GoalStatus
 from dynamic_reconfigure.client import Client
 from geometry_msgs.msg import Point, Vector3
@@ -162,7 +161,7 @@ def test_lock_half_way_through_a_grind_stops_the_arm_and_fails_naming_the_joint(
             shou_pitch_joint_locked_failure=True,
         )
         t_lock = flag.header.stamp.to_sec()
-        assert grind.wait_for_result(rospy.Duration(120)), "TaskGrind did not end"
+        assert grind.wait_for_end(120), "TaskGrind did not end"
         text = grind.get_goal_status_text()
         assert grind.get_state() == GoalStatus.ABORTED, text
         assert "arm execution error: j_shou_pitch locked (HARDWARE)" in text
@@ -224,7 +223,7 @@ def test_goal_error_refuses_goals_until_fault_clear(stack):
         assert not response.success and "ARM_GOAL_ERROR stands" in response.message
         clear = action_client("FaultClear", owl.FaultClearAction)
         clear.send_goal(owl.FaultClearGoal(fault=SystemFaultsStatus.ARM_GOAL_ERROR))
-        assert clear.wait_for_result(rospy.Duration(30))
+        assert clear.wait_for_end(30)
         assert clear.get_state() == GoalStatus.SUCCEEDED
         stack.system.wait_for(
             lambda m: not m.value & SystemFaultsStatus.ARM_GOAL_ERROR, "ARM_GOAL_ERROR cleared"
@@ -265,7 +264,7 @@ def test_ft_zero_signal_during_find_surface_never_gives_a_surface(stack, continu
             enable=True,
             zero_signal_failure=True,
         )
-        assert find.wait_for_result(rospy.Duration(120)), "ArmFindSurface did not end"
+        assert find.wait_for_end(120), "ArmFindSurface did not end"
         text = find.get_goal_status_text()
         assert find.get_state() == GoalStatus.ABORTED, text
         assert "no force data from the wrist F/T sensor (NO_FORCE_DATA)" in text
@@ -300,7 +299,7 @@ def test_locked_antenna_fails_pan_tilt_goals(stack):
             "PAN_JOINT_LOCKED",
             ant_pan_joint_locked_failure=True,
         )
-        assert pan_tilt.wait_for_result(rospy.Duration(60))
+        assert pan_tilt.wait_for_end(60)
         text = pan_tilt.get_goal_status_text()
         assert pan_tilt.get_state() == GoalStatus.ABORTED, text
         assert "j_ant_pan locked (PAN_JOINT_LOCKED)" in text

@@ -8,10 +8,11 @@ user runs it, checked against independent sources rather than against its own re
 * the energies: the ``ow_power`` analysis of the recorded ``/power`` over each step's window.
 
 A second mission cannot find the ground and must stop there, keeping what it recorded. The
-default mission runs a second time, beside the report's mission (through OceanWATERS' actions,
-renders on), and must be the same run as the first (issue 16). The report's checks: every
-image it links exists, its energies are the power plot's, its figures say what the run did.
-Each mission runs once per module; the checks only read its run directory.
+default mission runs twice at once (renders on, as ``make demo``), and the two must be the same
+run (issue 16). The report's checks: every image it links exists, its energies are the power
+plot's, its figures say what the run did. Each mission runs once per module; the checks only
+read its run directory. The mission through OceanWATERS' actions (``interface: actions``) is
+test_campaign's: its missions run through them.
 """
 
 import json
@@ -129,34 +130,28 @@ def _default_mission() -> dict[str, Any]:
 
 
 @pytest.fixture(scope="module")
-def mission(tmp_path_factory):
-    """The default mission, run once."""
-    return _run_mission(tmp_path_factory.mktemp("mission"), **_default_mission())
-
-
-@pytest.fixture(scope="module")
-def beside(tmp_path_factory):
-    """The default mission again, while the report's mission runs beside it: the default
-    procedure through OceanWATERS' actions (``interface: actions``), renders on (under make test
-    the other worker's tests run beside both): (the default mission's run, the report's)."""
+def pair(tmp_path_factory):
+    """The default mission run twice at once from the same file, renders on as ``make demo``
+    makes them (under make test the other worker's tests run beside both)."""
+    keys = {**_default_mission(), "renders": True}
     with ThreadPoolExecutor(max_workers=2) as pool:
-        again = pool.submit(_run_mission, tmp_path_factory.mktemp("again"), **_default_mission())
-        report = pool.submit(
-            _run_mission,
-            tmp_path_factory.mktemp("report"),
-            name="report test",
-            terrain=TERRAIN,
-            interface="actions",
-            renders=True,
-        )
-        return again.result(), report.result()
+        runs = [
+            pool.submit(_run_mission, tmp_path_factory.mktemp(name), **keys)
+            for name in ("mission", "again")
+        ]
+        return runs[0].result(), runs[1].result()
 
 
 @pytest.fixture(scope="module")
-def run(beside):
+def mission(pair):
+    """The default mission (renders on): the run the procedure's and the report's checks read."""
+    return pair[0]
+
+
+@pytest.fixture(scope="module")
+def run(mission):
     """The report's mission: (exit code, output, run directory, report.json)."""
-    report = beside[1]
-    return report.returncode, report.output, report.run_dir, report.report
+    return mission.returncode, mission.output, mission.run_dir, mission.report
 
 
 @pytest.fixture(scope="module")
@@ -401,10 +396,10 @@ def test_the_bags_carry_oceanwaters_telemetry(mission):
         assert next(_messages(mission.bags, topic), None) is not None, topic
 
 
-def test_a_run_is_a_function_of_its_mission_file(mission, beside, no_ground):
-    """Issue 16: the default mission twice, the second time while another mission runs beside
-    it, gives the same report numbers and the same /joint_states and /power, bit for bit."""
-    again, _ = beside
+def test_a_run_is_a_function_of_its_mission_file(pair, no_ground):
+    """Issue 16: the default mission twice, at once (each beside the other), gives the same
+    report numbers and the same /joint_states and /power, bit for bit."""
+    mission, again = pair
     assert again.returncode == 0, again.output
     first, second = report_numbers(mission.report), report_numbers(again.report)
     assert len(first) > 100  # every step's times, energies, positions, the trench, ...
@@ -430,7 +425,7 @@ def _raw(bags: list[Path], topic: str) -> list[bytes]:
     return data
 
 
-# ------------------------------------------------------------------ the report (actions)
+# -------------------------------------------------------------------------- the report
 def test_the_mission_succeeds_and_every_linked_image_exists(run):
     returncode, output, run_dir, report = run
     assert returncode == 0, output
@@ -480,22 +475,3 @@ def test_the_replay_runs_at_ten_frames_per_second_or_more(run):
     with Image.open(run_dir / replay["file"]) as gif:
         assert gif.n_frames == replay["frames"] >= 100
         assert gif.info["duration"] <= 100  # ms per frame
-
-
-def test_every_step_succeeds_through_the_actions(run):
-    returncode, output, _, report = run
-    assert returncode == 0, output[-3000:]
-    assert [s["step"] for s in report["steps"]] == STEPS
-    for step in report["steps"]:
-        assert step["success"], (step["step"], step["message"])
-        assert step["sim_end_s"] > step["sim_start_s"]
-        assert step["energy_wh"] > 0.0
-    assert report["config"]["interface"] == "actions"
-    assert report["steps"][1]["message"].startswith("ArmFindSurface:")
-
-
-def test_ground_found_lies_on_the_terrain(run):
-    _, _, _, report = run
-    x, y, z = report["steps"][1]["ground_position"]
-    assert report["ground_z"] == pytest.approx(z)
-    assert z == pytest.approx(float(parse_terrain_spec(TERRAIN).height_at(x, y)), abs=0.005)

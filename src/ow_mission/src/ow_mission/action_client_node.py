@@ -17,6 +17,8 @@ from ow_mission.action_steps import StepResponse, action_goal, step_response
 
 #: s of wall time between checks that a new client's subscriptions are connected.
 _POLL_S = 0.01
+#: s of wall time at most between checks for shutdown while a goal's end is awaited.
+_WAKE_S = 0.1
 
 
 class ActionClient(actionlib.SimpleActionClient):
@@ -24,7 +26,12 @@ class ActionClient(actionlib.SimpleActionClient):
     only when ``send_goal`` returns, and drops a transition that arrives before ("Got a
     transition callback on a goal handle that we're not tracking"); a goal the server ends at
     once (a rejection) then never ends for the client, and ``wait_for_result`` waits forever.
-    Here transitions and feedback wait until ``send_goal`` has returned."""
+    Here transitions and feedback wait until ``send_goal`` has returned.
+
+    Wait with :meth:`wait_for_end` (wall time): ``wait_for_result`` counts ROS time, which under
+    ``/use_sim_time`` runs tens of times faster than the wall clock, so its timeout is a matter of
+    the machine's load (30 s of simulated time were under a second of wall time in CI while a
+    goal's rejection was still on its way)."""
 
     def __init__(self, ns: str, action_spec: type) -> None:
         self._sending = threading.RLock()
@@ -35,6 +42,24 @@ class ActionClient(actionlib.SimpleActionClient):
     ) -> None:
         with self._sending:
             super().send_goal(goal, done_cb, active_cb, feedback_cb)
+
+    def wait_for_end(self, timeout_s: float) -> bool:
+        """Wait until the goal has ended, at most ``timeout_s`` s of wall time; whether it did.
+
+        Raises:
+            ValueError: no goal was sent.
+        """
+        if self.gh is None:
+            msg = "wait_for_end: no goal was sent"
+            raise ValueError(msg)
+        deadline = time.monotonic() + timeout_s
+        with self.done_condition:
+            while self.simple_state != actionlib.SimpleGoalState.DONE:
+                left = deadline - time.monotonic()
+                if left <= 0.0 or rospy.is_shutdown():
+                    return False
+                self.done_condition.wait(min(left, _WAKE_S))
+        return True
 
     def _handle_transition(self, gh: Any) -> None:
         with self._sending:
@@ -96,7 +121,7 @@ class ActionStepClient:
             client = connect(action, getattr(owl_msgs.msg, f"{action}Action"), timeout_s)
             self._clients[action] = client
         client.send_goal(fill_fields(getattr(owl_msgs.msg, f"{action}Goal")(), goal))
-        if not client.wait_for_result(rospy.Duration(timeout_s)):
+        if not client.wait_for_end(timeout_s):
             client.cancel_goal()
             raise TimeoutError
         succeeded = client.get_state() == GoalStatus.SUCCEEDED

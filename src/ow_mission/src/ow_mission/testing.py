@@ -104,15 +104,21 @@ def ros_stack(ros_master: RosMaster) -> Iterator[RosStack]:
             _SUBSCRIBERS.pop().unregister()
 
 
+#: sim s per wall s of the simulation :func:`start_lander` starts. Not as fast as it can: a
+#: simulation left running free between a module's tests (and its subscribers, on every joint
+#: state) would take a core from the other pytest worker for nothing.
+TEST_REAL_TIME_FACTOR = 20.0
+
+
 @pytest.fixture(scope="module")
 def start_lander(ros_stack: RosStack) -> Callable[..., RosStack]:
     """A function starting the simulation and the arm services on this module's stack.
 
     Its keyword arguments: ``terrain`` (spec, default :data:`FLAT`); ``sim`` and ``arm`` (more
-    private parameters of each node; the sim runs as fast as it can and the arm services plan
-    and execute unless these say otherwise); ``arm_services`` (services to wait for, default
-    ``/arm/unstow``); ``sim_topics`` (topics of the sim to wait for, default ``/joint_states``).
-    It returns the stack.
+    private parameters of each node; the sim runs at :data:`TEST_REAL_TIME_FACTOR` and the arm
+    services plan and execute unless these say otherwise); ``arm_services`` (services to wait
+    for, default ``/arm/unstow``); ``sim_topics`` (topics of the sim to wait for, default
+    ``/joint_states``). It returns the stack.
     """
 
     def start(
@@ -125,7 +131,11 @@ def start_lander(ros_stack: RosStack) -> Callable[..., RosStack]:
         ros_stack.start_node(
             "ow_sim_bullet",
             "sim",
-            params={"terrain": terrain, "real_time_factor": 0.0, **(sim or {})},
+            params={
+                "terrain": terrain,
+                "real_time_factor": TEST_REAL_TIME_FACTOR,
+                **(sim or {}),
+            },
             wait_for_services=["/sim/set_terrain"],
             wait_for_topics=list(sim_topics),
         )
