@@ -16,9 +16,12 @@ import pytest
 import yaml
 
 from ow_lander.description import ARM_JOINTS
+from ow_mission.fault_schedule import MISSION_STEPS
 from ow_mission.run_compare import differences
 
 TINY_MISSION = {
+    # Through OceanWATERS' actions: the mission's interface: actions is tested here.
+    "interface": "actions",
     "terrain": "flat:-0.155",
     "trench_depth": 0.02,
     "bottom_grind_depth": 0.01,
@@ -75,12 +78,17 @@ def results(directory: Path) -> list[dict]:
     return [json.loads(line) for line in (directory / "results.jsonl").read_text().splitlines()]
 
 
+#: With seed 22 and probability 0.5, mission 0 draws the fault and missions 1 and 2 do not.
+FAULT = {"probability": 0.5, "at_step": "grind", "after_s": 1.0, "set": LOCKED}
+
+
 @pytest.fixture(scope="module")
 def local(tmp_path_factory):
     """A 3-mission campaign on the local engine: mission 0 first, then the campaign directory
-    alone resumes it (missions 1 and 2 only)."""
+    alone resumes it (missions 1 and 2 only). Mission 0 has its shoulder locked 1 s into the
+    grind (a fault due mid-step, which the replay must reproduce too)."""
     tmp = tmp_path_factory.mktemp("campaign_local")
-    path = campaign(tmp, "local", missions=3)
+    path = campaign(tmp, "local", missions=3, seed=22, faults=[FAULT])
     first = rosrun_campaign(str(path), "--missions", "0", cwd=tmp)
     directory = tmp / "campaigns" / "local"
     second = rosrun_campaign(str(directory), cwd=tmp)
@@ -97,8 +105,7 @@ def on_ray(tmp_path_factory):
         # make test overloads 2 cores: other tests then time out connecting to services.
         pytest.skip("Ray campaign test: set OW_RAY_TESTS=1 (make test-ray) to run it")
     tmp = tmp_path_factory.mktemp("campaign_ray")
-    fault = {"probability": 0.5, "at_step": "grind", "after_s": 1.0, "set": LOCKED}
-    path = campaign(tmp, "ray", missions=2, engine="ray", address="local", seed=22, faults=[fault])
+    path = campaign(tmp, "ray", missions=2, engine="ray", address="local", seed=22, faults=[FAULT])
     run = rosrun_campaign(str(path), cwd=tmp)
     return tmp / "campaigns" / "ray", run.stdout
 
@@ -129,8 +136,9 @@ def test_local_campaign_report(local):
         for s in stow:
             for p, m in zip(s["final_tool_position"], ops["stow"]["position_mean"], strict=True):
                 assert abs(p - m) < 0.01
-        # Flat ground at -0.155 m: the guarded move finds it within 2 cm.
-        assert report["ground_error_m"]["n"] == len(done)
+        # Flat ground at -0.155 m: every mission's guarded move (before the faulted mission's
+        # grind) finds it within 2 cm.
+        assert report["ground_error_m"]["n"] == 3
         assert all(abs(e) < 0.02 for e in report["ground_error_m"]["values"])
     for failed in report["failed"]:
         assert failed["command"].startswith("rosrun ow_mission mission ")
@@ -140,6 +148,40 @@ def test_local_campaign_report(local):
     assert "| stow |" in text or not done
     for figure in report["figures"]:
         assert (directory / figure).stat().st_size > 1000
+
+
+def test_the_faulted_mission_fails_at_the_grind_naming_the_locked_joint(local):
+    directory, _, _ = local
+    record = next(r for r in results(directory) if r["index"] == 0)
+    assert record["faults"] == 1
+    report = json.loads(Path(record["run_dir"], "report.json").read_text())
+    assert not report["success"]
+    assert report["failed_step"] == "grind"
+    assert "j_shou_pitch locked" in report["error"], report["error"]
+    [applied] = report["fault_schedule"]
+    grind = next(s for s in report["steps"] if s["step"] == "grind")
+    # Held for at its time: the lock holds from exactly 1 s into the grind.
+    assert applied["due_s"] == applied["applied_s"] == pytest.approx(grind["sim_start_s"] + 1.0)
+
+
+def test_every_mission_without_faults_succeeds_through_the_actions(local):
+    directory, _, _ = local
+    records = [r for r in results(directory) if r["faults"] == 0]
+    assert sorted(r["index"] for r in records) == [1, 2]
+    for record in records:
+        report = json.loads(Path(record["run_dir"], "report.json").read_text())
+        assert report["config"]["interface"] == "actions"
+        assert report["success"], report["error"]
+        steps = report["steps"]
+        assert [s["step"] for s in steps] == list(MISSION_STEPS)
+        for step in steps:
+            assert step["success"], (step["step"], step["message"])
+            assert step["sim_end_s"] > step["sim_start_s"]
+            assert step["energy_wh"] > 0.0
+        assert steps[1]["message"].startswith("ArmFindSurface:")
+        z = steps[1]["ground_position"][2]
+        assert report["ground_z"] == pytest.approx(z)
+        assert z == pytest.approx(-0.155, abs=0.005)  # flat ground
 
 
 def test_each_mission_file_replays_alone(local):
@@ -152,8 +194,9 @@ def test_each_mission_file_replays_alone(local):
 
 
 def test_a_mission_replayed_from_its_file_is_the_same_run(local):
-    """Issue 16: the replay command of a campaign's mission gives the identical result: every
-    report number and every /joint_states, /power and F/T message."""
+    """Issue 16: the replay command of a campaign's mission (mission 0, faulted mid-step) gives
+    the identical result: every report number and every message of the topics run_compare
+    compares (joint states, power, wrenches, battery, fault status)."""
     directory, _, _ = local
     record = results(directory)[0]
     folder = Path(record["mission_file"]).parent

@@ -90,6 +90,16 @@ def test_motion_continues_in_fault_unless_the_guard_needs_force_data():
     )
 
 
+def test_flagged_arm_joints_give_the_reaction_the_detectors_status_will():
+    """In the lockstep the arm acts on the simulation's lock flags: the same stop reason as
+    once the detector's HARDWARE status has arrived."""
+    flagged = FaultReaction().with_locked({"j_shou_pitch"})
+    assert flagged == locked_arm()
+    assert flagged.stop_reason(False) == locked_arm().stop_reason(False)
+    assert FaultReaction().with_locked({"j_ant_pan"}) == FaultReaction()  # the mast: not the arm
+    assert FaultReaction().with_locked(set()).stop_reason(False) is None
+
+
 def test_the_system_bit_without_the_arm_status_yet_is_not_acted_on():
     assert FaultReaction(system=fr.ARM_EXECUTION_ERROR).arm_error() is None
 

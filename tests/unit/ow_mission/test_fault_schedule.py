@@ -128,6 +128,23 @@ def test_entries_come_due_once_in_order_of_due_time(now_s, expected):
     assert [f.index for f in timer.never_due()] == [i for i in (0, 1, 2) if i not in expected]
 
 
+def test_the_next_due_time_is_the_earliest_known_not_handed_out():
+    """What the mission holds the simulation at: entry 1 at 20 s; entry 0 (grind + 3 s) only
+    once the grind has started; nothing once all are handed out."""
+    timer = _timer()
+    assert timer.next_due_s() == 20.0  # entry 2 waits for unstow, entry 0 for the grind
+    timer.step_started("unstow", 0.5)
+    assert timer.next_due_s() == 0.5
+    timer.due(0.5)
+    assert timer.next_due_s() == 20.0
+    timer.due(20.0)
+    assert timer.next_due_s() is None
+    timer.step_started("grind", 40.0)
+    assert timer.next_due_s() == 43.0
+    timer.due(43.0)
+    assert timer.next_due_s() is None
+
+
 def test_a_step_started_again_keeps_its_first_start():
     timer = _timer()
     timer.step_started("grind", 40.0)

@@ -96,6 +96,21 @@ def test_a_hold_stops_the_simulation_at_its_time_until_released():
     assert lockstep.blocking(0.3) is None
 
 
+def test_every_client_holding_the_simulation_is_listed_not_only_the_first():
+    """Two holds at one time (the arm services after a step, a fault schedule due then): each
+    client learns that the simulation stands at its hold."""
+    lockstep = Lockstep(LATENCY)
+    lockstep.register("arm", 0.0, hold=False)
+    lockstep.register("faults", 0.0, hold=False)
+    lockstep.ack("arm", 1.0 - LATENCY, hold_until=1.0)
+    lockstep.ack("faults", 1.0 - LATENCY, hold_until=1.0)  # follows no joint state
+    assert lockstep.holding(0.99) == []
+    assert steps_allowed(lockstep, 0.0) == pytest.approx(1.0)
+    assert lockstep.holding(1.0) == ["arm", "faults"]
+    lockstep.unregister("faults")
+    assert lockstep.holding(1.0) == ["arm"]
+
+
 def test_a_client_silent_too_long_is_named_but_a_holding_one_is_not():
     lockstep = Lockstep(LATENCY)
     lockstep.register("dead", 0.0, hold=False, wall=100.0)

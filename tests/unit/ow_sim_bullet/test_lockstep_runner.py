@@ -60,8 +60,8 @@ def test_stepping_stops_at_a_hold_and_goes_on_once_released(runner):
     assert runner.step_paused(10) == pytest.approx(0.0)  # held where it registered
     runner.lockstep_ack("arm", 0.0, 0.03, [])
     assert runner.step_paused(10) == pytest.approx(0.03)
-    _, stamp, clients, blocked = runner.lockstep_status()
-    assert (clients, blocked) == (["arm"], ("arm", "hold"))
+    _, stamp, clients, blocked, holding = runner.lockstep_status()
+    assert (clients, blocked, holding) == (["arm"], ("arm", "hold"), ["arm"])
     assert stamp == pytest.approx(0.02)  # the last state published, of the step from 0.02
 
 
@@ -71,8 +71,8 @@ def test_a_late_acknowledgement_holds_the_simulation_back_until_it_comes(runner)
     deadline = time.monotonic() + 5.0
     while runner.lockstep_status()[3] is None and time.monotonic() < deadline:
         time.sleep(0.01)
-    now, _, _, blocked = runner.lockstep_status()
-    assert blocked == ("arm", "ack")
+    now, _, _, blocked, holding = runner.lockstep_status()
+    assert (blocked, holding) == (("arm", "ack"), [])
     assert now == pytest.approx(LATENCY + 0.01)  # registered at 0: one latency and a step on
     runner.lockstep_ack("arm", 0.5, None, [])
     while runner.lockstep_status()[0] < 0.55 and time.monotonic() < deadline:

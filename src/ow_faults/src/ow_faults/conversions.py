@@ -6,9 +6,6 @@ from typing import Any
 
 from ow_faults.injection import PARAMETERS, FaultSet
 
-#: The ``/faults`` server's latched configuration (dynamic_reconfigure/Config).
-FAULTS_TOPIC = "/faults/parameter_updates"
-
 
 def config_values(msg: Any) -> dict[str, Any]:
     """parameter -> value of a dynamic_reconfigure/Config message (every typed list)."""
@@ -16,8 +13,8 @@ def config_values(msg: Any) -> dict[str, Any]:
 
 
 def faults_from_msg(msg: Any) -> FaultSet:
-    """The fault set a ``/faults/parameter_updates`` message carries; parameters that are not
-    fault parameters (none from our server) are left out.
+    """The fault set a dynamic_reconfigure/Config of the ``/faults`` server carries;
+    parameters that are not fault parameters (none from our server) are left out.
 
     Raises:
         FaultError: a value of the wrong type or out of range.

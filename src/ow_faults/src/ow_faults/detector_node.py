@@ -46,9 +46,10 @@ class DetectorNode:
         ``/arm_end_effector_force_torque`` (owl_msgs/ArmEndEffectorForceTorque, its arrival);
         ``/battery_state_of_charge`` (owl_msgs/BatteryStateOfCharge, 0-1);
         ``/battery_temperature`` (owl_msgs/BatteryTemperature, degrees C);
-        ``/faults/parameter_updates`` (dynamic_reconfigure/Config: injected F/T zero signal,
-        ``auto_clear_goal_errors``); ``/<Action>/status`` (actionlib_msgs/GoalStatusArray) of
-        the arm, task and pan/tilt actions.
+        ``/faults/changes`` (ow_msgs/FaultChange: injected F/T zero signal,
+        ``auto_clear_goal_errors``; the status a change makes is stamped with its stamp);
+        ``/<Action>/status`` (actionlib_msgs/GoalStatusArray) of the arm, task and pan/tilt
+        actions.
     Publishes (latched, on every change; ``header.frame_id`` "world", stamp: the simulation
         time of the input that changed it): ``/arm_faults_status`` (owl_msgs/ArmFaultsStatus),
         ``/pan_tilt_faults_status`` (owl_msgs/PanTiltFaultsStatus), ``/power_faults_status``
@@ -65,7 +66,12 @@ class DetectorNode:
             for topic, cls, field in OUTPUTS
         ]
         self._publish(self.detector.status, rospy.Time(0))
-        self.listener = FaultsListener(partial(self._update, "on_injected"), "detector")
+        self.listener = FaultsListener(
+            lambda faults, stamp_s: self._update(
+                "on_injected", faults, stamp=rospy.Time.from_sec(stamp_s)
+            ),
+            "detector",
+        )
         rospy.Subscriber(
             "/flags/joint_states", JointStatesFlag, self._on_flags, queue_size=EVERY_MESSAGE
         )
@@ -111,12 +117,16 @@ class DetectorNode:
         _, newest = max(
             enumerate(msg.status_list), key=lambda item: (item[1].goal_id.stamp, item[0])
         )
-        self._update("on_goal_status", action, newest.goal_id.id, newest.status)
+        # Stamped with the server's clock when it published the status (the arm services in a
+        # mission: the time the simulation is held at when a goal ends).
+        self._update(
+            "on_goal_status", action, newest.goal_id.id, newest.status, stamp=msg.header.stamp
+        )
 
     def _update(self, rule: str, *args: Any, stamp: Any = None) -> None:
         with self._lock:
             if getattr(self.detector, rule)(*args):
-                self._publish(self.detector.status, stamp or rospy.Time.now())
+                self._publish(self.detector.status, rospy.Time.now() if stamp is None else stamp)
 
     def _publish(self, status: FaultStatus, stamp: Any) -> None:
         for publisher, cls, field in self._publishers:

@@ -159,6 +159,7 @@ class ArmActions:
             with self._lock:
                 self._running = None
             self.node.release()
+        self.node.executor.settle()  # in a mission: the end stamped where the arm is held
         announce, result, message = end
         success = announce == handle.set_succeeded
         self.node.marker(

@@ -25,7 +25,7 @@ from ow_lander.description import (
 )
 from ow_lander.errors import PlanningError
 from ow_lander.execution import ExecutionMonitor
-from ow_lander.lockstep_node import LockstepClient
+from ow_lander.lockstep_node import LockstepClient, LockstepError
 from ow_msgs.msg import GroundDetectorSignal
 from owl_msgs.msg import ArmEndEffectorForceTorque
 
@@ -86,6 +86,22 @@ class ArmObserver:
             queue_size=conv.EVERY_MESSAGE,
             tcp_nodelay=True,
         )
+
+    def join_lockstep(self, hold: bool) -> None:
+        """Register with the simulation's lockstep once it offers one (it may start later, or
+        never: then commands go out on the controllers' topics); ``hold``: holding it."""
+        client = LockstepClient(rospy.get_name())
+        try:
+            client.register(hold=hold)
+        except LockstepError as error:
+            rospy.logwarn(f"arm services: no lockstep: {error}")
+            return
+        with self._state_changed:  # and the joint states since registration
+            self._lockstep = client
+            if self._monitor is None:
+                client.ack(self._joint_stamp, force=True)
+        rospy.on_shutdown(client.close)
+        rospy.loginfo(f"arm services: in the simulation's lockstep (latency {client.latency} s)")
 
     def _on_joint_states(self, msg: JointState) -> None:
         values = conv.joint_positions(list(msg.name), msg.position)
@@ -183,13 +199,37 @@ class ArmObserver:
         for signal in signals:
             self.signal_pub.publish(conv.detector_signal_msg(signal))
 
+    def _catch_up(self) -> None:
+        """While this node holds the simulation in the lockstep, wait (``joint_state_timeout_s``
+        of wall time at most) until the newest joint state it published has arrived: the
+        simulation stands there, and a plan started from an older state (a subscriber lagging
+        under load) would differ from run to run."""
+        lockstep = self._lockstep
+        if lockstep is None or not lockstep.holding:
+            return
+        try:
+            stamp = lockstep.published_stamp()
+        except LockstepError as error:
+            rospy.logwarn(f"arm services: {error}")
+            return
+        with self._state_changed:
+            if not self._state_changed.wait_for(
+                lambda: self._joint_stamp >= stamp - STAMP_SLACK_S, self.joint_state_timeout_s
+            ):
+                rospy.logwarn(
+                    f"arm services: the joint state of t={stamp:.3f} s did not arrive within "
+                    f"{self.joint_state_timeout_s} s; planning from t={self._joint_stamp:.3f} s"
+                )
+
     def current_joints(self) -> dict[str, float]:
-        """rad by name, the latest joint state of the lander's joints; waits for the first one.
+        """rad by name, the latest joint state of the lander's joints; waits for the first one
+        (and in the lockstep, holding the simulation, for the one it stands at).
 
         Raises:
             PlanningError: none with every arm joint within ``joint_state_timeout_s``, or the
                 node is shutting down.
         """
+        self._catch_up()
         deadline = time.monotonic() + self.joint_state_timeout_s
         while not rospy.is_shutdown():
             with self._state_changed:

@@ -25,7 +25,7 @@ from ow_lander.execution import (
     with_settle_pause,
 )
 from ow_lander.faults_watch_node import FaultWatch
-from ow_lander.lockstep_node import LockstepClient, LockstepError
+from ow_lander.lock_flags_node import LockFlags, without_locks
 from ow_lander.model import LanderModel
 from ow_lander.sim_clock_node import TrajectoryDeliveryError
 from ow_lander.trajectory import Trajectory
@@ -67,24 +67,18 @@ class ArmExecutor(ArmObserver):
             j: rospy.Publisher(conv.command_topic(j), Float64, queue_size=10) for j in ARM_JOINTS
         }
         self.faults = FaultWatch(self._on_fault_status)
+        self._flags = LockFlags() if config.lockstep else None
+        self._stop_requested = False  # by a user or the telemetry: braking goes out at once
         if config.lockstep:
-            threading.Thread(target=self._join_lockstep, name="lockstep", daemon=True).start()
+            threading.Thread(
+                target=self.join_lockstep, args=(config.lockstep_hold,), daemon=True
+            ).start()
 
-    def _join_lockstep(self) -> None:
-        """Register with the simulation's lockstep once it offers one (it may start later, or
-        never: then commands go out on the controllers' topics)."""
-        client = LockstepClient(rospy.get_name())
-        try:
-            client.register(hold=self.config.lockstep_hold)
-        except LockstepError as error:
-            rospy.logwarn(f"arm services: no lockstep: {error}")
-            return
-        with self._state_changed:  # and the joint states since registration
-            self._lockstep = client
-            if self._monitor is None:
-                client.ack(self._joint_stamp, force=True)
-        rospy.on_shutdown(client.close)
-        rospy.loginfo(f"arm services: in the simulation's lockstep (latency {client.latency} s)")
+    def settle(self) -> None:
+        """With ``lockstep_hold``, after an execution: wait until the simulation stands where this
+        node holds it (see :meth:`~ow_lander.lockstep_node.LockstepClient.settle`)."""
+        if self._lockstep is not None and self.config.lockstep_hold:
+            self._lockstep.settle(self.joint_state_timeout_s)
 
     def _on_fault_status(self, stamp: float) -> None:
         """Stop the running execution, from the fault's stamp, when a fault says so (in a
@@ -93,7 +87,10 @@ class ArmExecutor(ArmObserver):
             monitor = self._monitor
         if monitor is None or monitor.stop_time is not None:
             return
-        reason = self.faults.now().stop_reason(monitor.watches_force)
+        reaction = self.faults.now()
+        if self._flags is not None and self._lockstep is not None:
+            reaction = without_locks(reaction)  # the decisions see the locks, stamp by stamp
+        reason = reaction.stop_reason(monitor.watches_force)
         if reason is not None:
             threading.Thread(target=self.stop, args=(reason, stamp), daemon=True).start()
 
@@ -131,6 +128,7 @@ class ArmExecutor(ArmObserver):
             self._monitor, self._on_sample = monitor, on_sample
             self._pending.clear()
             self._stopped.clear()
+            self._stop_requested = False
             # A fault that arrived while the trajectory was being delivered.
             fault = self.faults.now().stop_reason(monitor.watches_force)
             if fault is not None:
@@ -172,8 +170,15 @@ class ArmExecutor(ArmObserver):
                     stamp, joints = self._joint_stamp, dict(self._joints)
                 if arrived:
                     self._wait_stream(monitor, stamp)
+            if arrived and self._flags is not None and monitor.stop_time is None:
+                fault = self._flags.stop_reason(
+                    self.faults.now(), stamp, monitor.watches_force, self.joint_state_timeout_s
+                )
+                if fault is not None:  # a lock flagged with this state: brake from it
+                    monitor.request_stop(stamp, fault)
+            with self._state_changed:
                 decision = monitor.decide(stamp, joints) if arrived else monitor.stalled()
-            self._apply(decision, stamp, now=monitor.stop_time is not None)
+            self._apply(decision, stamp, now=self._stop_requested)
             if decision.result is not None:
                 return decision.result
         return ExecutionResult(False, "shutting down")
@@ -184,6 +189,7 @@ class ArmExecutor(ArmObserver):
         delivered, so the arm starts braking at once in simulation time at any speed. A
         ``fault`` (its message) makes the execution fail with it, braking from ``stamp`` (s sim,
         when the fault arose; default: the newest joint state)."""
+        self._stop_requested = True
         paused_here = self._sim_clock.pause()
         paused = paused_here is not None
         try:

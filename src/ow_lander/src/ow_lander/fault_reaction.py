@@ -2,7 +2,7 @@
 
 :class:`FaultReaction` is told the fault bitmasks (``/system_faults_status``,
 ``/arm_faults_status``, ``/pan_tilt_faults_status``) and the injector's behaviour parameters and
-locked joints (``/faults/parameter_updates``), and answers:
+locked joints (``/faults/changes``), and answers:
 
 * :meth:`FaultReaction.stop_reason`: why a running arm execution must stop now (an arm execution
   error while ``arm_motion_continues_in_fault`` is false; whatever that parameter says, no force
@@ -18,8 +18,8 @@ the generated messages); this module imports no message.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import dataclass, field
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 #: owl_msgs/SystemFaultsStatus bits read here.
@@ -45,6 +45,11 @@ GOAL_ERRORS = {
 ARM_SERVICES = frozenset({"unstow", "stow", "guarded_move", "publish_trajectory"})
 #: The ``/faults`` parameters whose name ends so lock joint ``j_<prefix>``.
 LOCK_SUFFIX = "_joint_locked_failure"
+#: The ``/faults`` server's changes, stamped with the sim time they hold from
+#: (ow_msgs/FaultChange, latched), and each follower's word that it applied one
+#: (ow_msgs/FaultChangeApplied).
+CHANGES_TOPIC = "/faults/changes"
+APPLIED_TOPIC = "/faults/applied"
 ANTENNA_JOINTS = ("j_ant_pan", "j_ant_tilt")
 
 
@@ -115,6 +120,19 @@ class FaultReaction:
         if not causes:
             causes.append(f"arm faults {self.arm:#x}")
         return "arm execution error: " + "; ".join(causes)
+
+    def with_locked(self, locked: Iterable[str]) -> FaultReaction:
+        """This reaction once the detector reports arm joints of ``locked`` (URDF names, e.g.
+        the simulation's flags) as HARDWARE, with the arm execution error it raises."""
+        arm_locked = frozenset(locked) - set(ANTENNA_JOINTS)
+        if not arm_locked:
+            return self
+        return replace(
+            self,
+            system=self.system | ARM_EXECUTION_ERROR,
+            arm=self.arm | HARDWARE,
+            locked=self.locked | arm_locked,
+        )
 
     def stop_reason(self, watches_force: bool) -> str | None:
         """Why an arm execution must stop now, or None. ``watches_force``: its guard reads the

@@ -7,14 +7,46 @@ import threading
 from collections.abc import Callable
 
 import rospy
-from dynamic_reconfigure.msg import Config
 
 from ow_lander.conversions import EVERY_MESSAGE
-from ow_lander.fault_reaction import FaultReaction, group_of, watches_force
+from ow_lander.fault_reaction import (
+    APPLIED_TOPIC,
+    CHANGES_TOPIC,
+    FaultReaction,
+    group_of,
+    watches_force,
+)
+from ow_msgs.msg import FaultChange, FaultChangeApplied
 from owl_msgs.msg import ArmFaultsStatus, PanTiltFaultsStatus, SystemFaultsStatus
 
 #: Called with the sim time (s) of a new fault status, on rospy's thread.
 StatusCallback = Callable[[float], None]
+
+
+class ChangeFollower:
+    """Follows the ``/faults`` server's changes, and says when each is applied.
+
+    Subscribes: ``/faults/changes`` (ow_msgs/FaultChange, latched).
+    Publishes: ``/faults/applied`` (ow_msgs/FaultChangeApplied: the change's stamp and version,
+        this node's name) once ``on_change`` has returned. Advertising it makes the node a
+        follower that a mission waits for before it lets the simulation pass a scheduled fault
+        (docs/determinism.md).
+
+    Args:
+        on_change: called on rospy's thread with each change and the sim time (s) it holds
+            from (data stamped after it must see it).
+    """
+
+    def __init__(self, on_change: Callable[[FaultChange, float], None]) -> None:
+        self._on_change_cb = on_change
+        self._applied = rospy.Publisher(APPLIED_TOPIC, FaultChangeApplied, queue_size=100)
+        rospy.Subscriber(CHANGES_TOPIC, FaultChange, self._on_change, queue_size=None)
+
+    def _on_change(self, msg: FaultChange) -> None:
+        self._on_change_cb(msg, msg.header.stamp.to_sec())
+        applied = FaultChangeApplied(node=rospy.get_name(), version=msg.version)
+        applied.header.stamp = msg.header.stamp
+        self._applied.publish(applied)
 
 
 class FaultWatch:
@@ -22,8 +54,9 @@ class FaultWatch:
 
     Subscribes: ``/system_faults_status`` (owl_msgs/SystemFaultsStatus), ``/arm_faults_status``
         (owl_msgs/ArmFaultsStatus), ``/pan_tilt_faults_status`` (owl_msgs/PanTiltFaultsStatus),
-        all latched by the detector (``rosrun ow_faults detector``); ``/faults/parameter_updates``
-        (dynamic_reconfigure/Config, latched by ``rosrun ow_faults faults``):
+        all latched by the detector (``rosrun ow_faults detector``); ``/faults/changes``
+        (ow_msgs/FaultChange, latched by ``rosrun ow_faults faults``, through
+        :class:`ChangeFollower`):
         ``arm_motion_continues_in_fault``, ``auto_clear_goal_errors`` and the locked joints.
         Without those nodes nothing is ever faulted.
 
@@ -35,9 +68,7 @@ class FaultWatch:
         self._lock = threading.Lock()
         self._state = FaultReaction()
         self._on_status = on_status
-        rospy.Subscriber(
-            "/faults/parameter_updates", Config, self._on_config, queue_size=EVERY_MESSAGE
-        )
+        self.follower = ChangeFollower(self._on_change)
         for topic, cls, attribute in (
             ("/arm_faults_status", ArmFaultsStatus, "arm"),
             ("/pan_tilt_faults_status", PanTiltFaultsStatus, "pan_tilt"),
@@ -47,8 +78,8 @@ class FaultWatch:
                 topic, cls, self._on_bits, callback_args=attribute, queue_size=EVERY_MESSAGE
             )
 
-    def _on_config(self, msg: Config) -> None:
-        values = {kv.name: kv.value for kv in msg.bools}
+    def _on_change(self, msg: FaultChange, _stamp_s: float) -> None:
+        values = {kv.name: kv.value for kv in msg.config.bools}
         with self._lock:
             self._state.on_parameters(values)
 

@@ -5,23 +5,8 @@ autonomy node of yours.
 Once registered, the simulation never runs more than its lockstep latency (0.1 s of sim time by
 default) past the newest joint state you acknowledged, and what you decide on the joint state of
 stamp ``s`` takes effect at exactly ``s + latency``, however slowly your node or the machine
-runs::
-
-    import rospy
-    from sensor_msgs.msg import JointState
-    from ow_lander.conversions import EVERY_MESSAGE
-    from ow_lander.lockstep_node import LockstepClient
-
-    rospy.init_node("my_autonomy")
-    client = LockstepClient("my_autonomy")
-
-    def on_joint_states(msg):
-        setpoints = my_policy(msg)  # {joint: rad}, or None
-        client.ack(msg.header.stamp.to_sec(), setpoints)
-
-    rospy.Subscriber("/joint_states", JointState, on_joint_states, queue_size=EVERY_MESSAGE)
-    client.register()  # after subscribing: every joint state from now on must be acknowledged
-    rospy.spin()
+runs. docs/determinism.md shows a node of yours joining it (register after subscribing to
+``/joint_states``, then :meth:`LockstepClient.ack` every joint state, with set-points or not).
 """
 
 from __future__ import annotations
@@ -158,6 +143,47 @@ class LockstepClient:
         with self._lock:
             return self._hold_until is not None
 
+    def hold_at(self, time_s: float) -> None:
+        """Hold the simulation at ``time_s`` (s, sim) until :meth:`release`, a later hold or
+        :meth:`close`, as a client that follows no joint state (e.g. a fault schedule): its
+        acknowledgement reaches up to the hold, so only the hold stops the simulation."""
+        with self._lock:
+            if not self.registered or self.latency is None:
+                return
+            self._acked = max(self._acked, time_s - self.latency)
+            self._hold_until = time_s
+            self._send(None)
+
+    def published_stamp(self) -> float:
+        """s (sim), the stamp of the newest joint state the simulation has published (what a
+        subscriber has once it has caught up; the simulation's ``~lockstep_status``).
+
+        Raises:
+            LockstepError: the status service failed.
+        """
+        try:
+            reply = rospy.ServiceProxy(STATUS_SERVICE, LockstepStatus)()
+        except (rospy.ROSException, rospy.ServiceException) as error:
+            msg = f"{STATUS_SERVICE} failed: {error}"
+            raise LockstepError(msg) from error
+        return float(reply.joint_state_stamp)
+
+    def settle(self, timeout_s: float) -> None:
+        """While holding: wait until the simulation stands at the hold and this node's clock
+        has reached it (``timeout_s`` of wall time at most for each), so that what the node
+        stamps now (e.g. an action's end, stamped by actionlib with the node's clock) carries
+        the same time in every run."""
+        if not self.holding:
+            return
+        try:
+            stamp = wait_until_held(self.name, timeout_s)
+        except LockstepError as error:
+            rospy.logwarn(f"{self.name}: {error}")
+            return
+        deadline = time.monotonic() + timeout_s
+        while rospy.get_time() < stamp - STAMP_SLACK_S and time.monotonic() < deadline:
+            time.sleep(0.002)
+
     def close(self) -> None:
         """Leave the lockstep (the simulation no longer waits for this client)."""
         with self._lock:
@@ -200,7 +226,7 @@ def wait_until_held(client: str, timeout_s: float) -> float:
         status = rospy.ServiceProxy(STATUS_SERVICE, LockstepStatus, persistent=True)
         while True:
             reply = status()
-            if reply.reason == "hold" and reply.waiting_for == client:
+            if client in reply.holding:
                 return float(reply.joint_state_stamp)
             if time.monotonic() > deadline:
                 msg = (

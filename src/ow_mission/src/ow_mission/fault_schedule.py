@@ -160,7 +160,9 @@ class AppliedFault:
         changes: parameter -> value sent to ``/faults``.
         due_s: s (sim) at which it was due; None when it never came due (its step never
             started, or the mission ended first).
-        applied_s: s (sim) when the ``/faults`` server had accepted it; None when not applied.
+        applied_s: s (sim) from which it holds: its due time when the simulation was held
+            for it (the lockstep), else the clock when the ``/faults`` server had accepted
+            it; None when not applied.
         error: why the server refused it ("" when it did not).
     """
 
@@ -218,6 +220,16 @@ class ScheduleTimer:
         ready.sort(key=lambda item: (item[0], item[1]))
         self._handed.update(index for _, index, _ in ready)
         return [(index, entry, due_s) for due_s, index, entry in ready]
+
+    def next_due_s(self) -> float | None:
+        """s (sim), the earliest due time of the entries not handed out yet whose time is known
+        (an ``at_step`` entry's once its step has started); None when there is none."""
+        times = [
+            due_s
+            for index, entry in enumerate(self.schedule)
+            if index not in self._handed and (due_s := entry.due_s(self._starts)) is not None
+        ]
+        return min(times, default=None)
 
     def never_due(self) -> list[AppliedFault]:
         """The entries not handed out (the run ended first), as not applied."""

@@ -327,8 +327,13 @@ FAULT_STATUS_TOPICS = (
     "/system_faults_status",
 )
 #: Fault topics the mission records: the status topics, the simulation's locked-joint flags and
-#: the /faults server's configuration.
-FAULT_TOPICS = (*FAULT_STATUS_TOPICS, "/flags/joint_states", "/faults/parameter_updates")
+#: the /faults server's configuration and its stamped changes.
+FAULT_TOPICS = (
+    *FAULT_STATUS_TOPICS,
+    "/flags/joint_states",
+    "/faults/parameter_updates",
+    "/faults/changes",
+)
 
 #: Hz of sim time, the rate of the telemetry topics the mission records.
 MISSION_TELEMETRY_HZ = 10.0

@@ -113,6 +113,7 @@ class MissionRunner:
                     self._run_steps()
                 finally:
                     if self._faults is not None:
+                        self._faults.stop()
                         self.report.fault_schedule = self._faults.results()
                     self.report.peak_memory_mb = peak_memory_mb(node.proc.pid for node in nodes)
                     self.report.sim_time_s = max(self._clock, self._last_joint_stamp())
@@ -149,12 +150,11 @@ class MissionRunner:
         rospy.Subscriber("/clock", Clock, self._on_clock, queue_size=10)
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=10)
         rospy.Subscriber("/power", Power, self._on_power, queue_size=EVERY_MESSAGE)
-        # Faults due at t = 0 are in place before the clock starts.
-        self._faults = FaultScheduleRunner(self.config.faults)
-        self._faults.poll(self._clock)
+        self._faults = FaultScheduleRunner(self.config.faults, lockstep=self._hold)
         # All connected before the first state is published: equal runs record equal messages.
         if not wait_until(lambda: not stack.master.unconnected(), 10.0):
             print("[mission] not every subscription connected within 10 s", flush=True)
+        self._faults.start(self._clock)  # those due at t = 0 in place; the next one held for
         error = self._sim_clock("resume")  # the sim offers /sim/resume: start its clock
         if error is not None:
             msg = f"could not start the simulation's clock: {error}"

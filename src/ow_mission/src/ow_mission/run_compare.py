@@ -16,6 +16,8 @@ from typing import Any
 
 from rosbags.highlevel import AnyReader
 
+from ow_mission.mission import FAULT_STATUS_TOPICS
+
 #: report.json entries that measure the machine, not the run.
 WALL_CLOCK_KEYS = frozenset(
     {
@@ -28,10 +30,8 @@ WALL_CLOCK_KEYS = frozenset(
         "seconds_to_make",
     }
 )
-#: Topics compared by default: the simulation's streams, power and the battery. Not the fault
-#: detector's ``/*_faults_status``: it publishes (latched) at start-up and on the fault server's
-#: first update, stamped with its clock then, and a bag starts with whichever was the latest
-#: when the recorder connected.
+#: Topics compared by default: the simulation's streams, power, the battery and the fault
+#: telemetry (the detector's status, stamped with the sim time of what changed it; the flags).
 TOPICS = (
     "/joint_states",
     "/power",
@@ -41,6 +41,9 @@ TOPICS = (
     "/battery_state_of_charge",
     "/battery_remaining_useful_life",
     "/battery_temperature",
+    "/flags/joint_states",
+    "/faults/changes",
+    *FAULT_STATUS_TOPICS,
 )
 
 

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import math
 import sys
 import threading
+from collections import deque
 
 import rospy
 from sensor_msgs.msg import BatteryState as BatteryStateMsg
@@ -36,9 +38,10 @@ class BatteryNode:
         Subscribes:
             ``power`` (ow_msgs/Power, every message): ``electrical_power`` (W: the motors'
             electrical power and P0), held over the interval ending at each stamp.
-            ``/faults/parameter_updates`` (dynamic_reconfigure/Config, latched): the power
-            faults (:mod:`ow_power.battery_faults`): extra load, custom profile, disconnected
-            cells, forced low SOC, capacity loss and thermal failure.
+            ``/faults/changes`` (ow_msgs/FaultChange, latched; acknowledged on
+            ``/faults/applied``): the power faults (:mod:`ow_power.battery_faults`): extra
+            load, custom profile, disconnected cells, forced low SOC, capacity loss and thermal
+            failure, applied before the first ``/power`` stamped after the change's stamp.
         Publishes (latched, queue 10; one message each per period, stamped with the period's
         end, ``frame_id`` ``base_link``):
             ``battery_state_of_charge`` (owl_msgs/BatteryStateOfCharge): ``value`` 0-1, the
@@ -87,20 +90,35 @@ class BatteryNode:
         self._subscriber = rospy.Subscriber(
             "power", Power, self._on_power, queue_size=EVERY_MESSAGE
         )
+        #: (s sim, faults) received and holding from a time no /power has passed yet
+        self._pending: deque[tuple[float, FaultSet]] = deque()
+        self._last_power_s = -math.inf  # s (sim), the newest /power taken
         self._faults = FaultsListener(self._on_faults, "battery")
 
-    def _on_faults(self, faults: FaultSet) -> None:
+    def _on_faults(self, faults: FaultSet, stamp_s: float) -> None:
+        """Faults holding from sim time ``stamp_s``: applied before the first ``/power``
+        stamped after it (at once when one has already been taken), whenever each arrives."""
         with self._lock:
-            try:
-                events = self.faults.update(faults)
-            except (FaultError, PowerError) as error:
-                rospy.logerr(f"battery: power fault not applied: {error}")
-                return
+            if stamp_s < self._last_power_s:
+                self._apply_faults(faults)
+            else:
+                self._pending.append((stamp_s, faults))
+
+    def _apply_faults(self, faults: FaultSet) -> None:
+        try:
+            events = self.faults.update(faults)
+        except (FaultError, PowerError) as error:
+            rospy.logerr(f"battery: power fault not applied: {error}")
+            return
         for event in events:
             rospy.logwarn(f"battery: {event} at {self.battery.state.time_s:.1f} s")
 
     def _on_power(self, msg: Power) -> None:
         with self._lock:
+            stamp = msg.header.stamp.to_sec()
+            while self._pending and self._pending[0][0] < stamp:
+                self._apply_faults(self._pending.popleft()[1])
+            self._last_power_s = max(self._last_power_s, stamp)
             self._take_power(msg)
 
     def _take_power(self, msg: Power) -> None:

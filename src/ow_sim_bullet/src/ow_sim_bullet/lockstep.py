@@ -130,6 +130,14 @@ class Lockstep:
                 waiting = (name, "ack")
         return waiting
 
+    def holding(self, now: float) -> list[str]:
+        """The clients that hold the simulation at sim time ``now`` (s), in registration order."""
+        return [
+            name
+            for name, client in self.clients.items()
+            if client.hold_until is not None and now >= client.hold_until - EPSILON
+        ]
+
     def due(self, now: float) -> list[tuple[str, float]]:
         """The commands (joint, set-point rad) to apply before the step from ``now`` (s, sim),
         in order: by the time they were decided for, then client registration, then arrival."""

@@ -22,9 +22,11 @@ from ow_sim_bullet.runner import SimRunner
 class SimReconfigure:
     """Injected faults applied to the simulation; its PID gains, readable and writable.
 
-    Subscribes: ``/faults/parameter_updates`` (dynamic_reconfigure/Config, latched, from
-        ``rosrun ow_faults faults``): joint locks and wrist F/T sensor faults, applied before
-        the next physics step (:meth:`~ow_sim_bullet.sim_core.BulletSim.apply_faults`).
+    Subscribes: ``/faults/changes`` (ow_msgs/FaultChange, latched, from ``rosrun ow_faults
+        faults``, through :class:`~ow_faults.listener_node.FaultsListener`): joint locks and
+        wrist F/T sensor faults, applied before the next physics step
+        (:meth:`~ow_sim_bullet.sim_core.BulletSim.apply_faults`), then acknowledged on
+        ``/faults/applied``.
     Publishes (through the simulation's outputs): ``/flags/joint_states``
         (ow_msgs/JointStatesFlag) with every ``/joint_states``.
     dynamic_reconfigure servers: ``/<controller>_position_controller/pid`` (ow_sim_bullet/Pid:
@@ -62,8 +64,13 @@ class SimReconfigure:
         rospy.Service("~set_pid_gains", SetPidGains, self._on_set_gains)
 
     # ------------------------------------------------------------------------------ faults
-    def _on_faults(self, faults: FaultSet) -> None:
-        self.runner.enqueue(partial(self._apply, faults))
+    def _on_faults(self, faults: FaultSet, _stamp_s: float) -> None:
+        # Applied before the next step, and only then acknowledged: a mission holding the
+        # simulation at a scheduled fault lets it go on once every follower has applied it.
+        try:
+            self.runner.call(partial(self._apply, faults))
+        except SimError as error:
+            rospy.logerr(f"sim: faults not applied: {error}")
 
     def _apply(self, faults: FaultSet) -> None:
         """On the simulation thread: apply ``faults`` and log what changed."""

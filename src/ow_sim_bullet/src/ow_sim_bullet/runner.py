@@ -159,12 +159,14 @@ class SimRunner:
         if problem is not None:
             self._log(f"sim: {problem}")
 
-    def lockstep_status(self) -> tuple[float, float, list[str], tuple[str, str] | None]:
+    def lockstep_status(
+        self,
+    ) -> tuple[float, float, list[str], tuple[str, str] | None, list[str]]:
         """(sim time s, stamp s of the newest joint state published, the registered clients,
-        :meth:`Lockstep.blocking` now)."""
+        :meth:`Lockstep.blocking` now, :meth:`Lockstep.holding` now)."""
         with self._wake:
-            now, stamp = self.sim.time, self.outputs.joint_stamp
-            return now, stamp, list(self.lockstep.clients), self.lockstep.blocking(now)
+            now, stamp, lockstep = self.sim.time, self.outputs.joint_stamp, self.lockstep
+            return now, stamp, list(lockstep.clients), lockstep.blocking(now), lockstep.holding(now)
 
     def call(self, command: Callable[[], T], timeout_s: float = CALL_TIMEOUT_S) -> T:
         """Run ``command`` on the simulation thread and return its result (or raise its error).
