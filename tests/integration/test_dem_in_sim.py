@@ -17,6 +17,7 @@ real arm services, with the shipped DEM table as the sim's terrain-force model a
 from __future__ import annotations
 
 import threading
+import time
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from typing import Any
@@ -50,6 +51,18 @@ class DigRecord:
     model_wrenches: dict[int, Any] = field(default_factory=dict)
     joints: dict[int, Any] = field(default_factory=dict)
     lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def caught_up(self) -> bool:
+        """Whether the joint states and the model's streams have reached the newest scoop
+        state's stamp."""
+        with self.lock:
+            if not self.states:
+                return False
+            newest = max(s.header.stamp.to_nsec() for s in self.states)
+            return all(
+                stream and max(stream) >= newest
+                for stream in (self.joints, self.model_states, self.model_wrenches)
+            )
 
     def cut(self) -> list[Any]:
         """The scoop states with the scoop in the ground, in time order."""
@@ -112,6 +125,11 @@ def _record_dig(
                 use_defaults=False, delete_prev_traj=False, **DIG
             )
             assert dig.success, dig.message
+            # The four streams arrive on connections of their own: wait until the joint states
+            # and the model's have caught up with the newest scoop state before unsubscribing.
+            deadline = time.monotonic() + 10.0
+            while time.monotonic() < deadline and not record.caught_up():
+                time.sleep(0.01)
         finally:
             for sub in subs:
                 sub.unregister()
