@@ -170,12 +170,14 @@ class ArmExecutor(ArmObserver):
                     stamp, joints = self._joint_stamp, dict(self._joints)
                 if arrived:
                     self._wait_stream(monitor, stamp)
-            if arrived and self._flags is not None and monitor.stop_time is None:
-                fault = self._flags.stop_reason(
+            flags = self._flags if self._lockstep is not None else None  # lockstep: exact
+            if arrived and flags is not None and monitor.stop_time is None:
+                fault = flags.stop_reason(
                     self.faults.now(), stamp, monitor.watches_force, self.joint_state_timeout_s
                 )
                 if fault is not None:  # a lock flagged with this state: brake from it
-                    monitor.request_stop(stamp, fault)
+                    with self._state_changed:
+                        monitor.request_stop(stamp, fault)
             with self._state_changed:
                 decision = monitor.decide(stamp, joints) if arrived else monitor.stalled()
             self._apply(decision, stamp, now=self._stop_requested)
