@@ -80,6 +80,11 @@ class ArmExecutor(ArmObserver):
         if self._lockstep is not None and self.config.lockstep_hold:
             self._lockstep.settle(self.joint_state_timeout_s)
 
+    def _decides_locks(self) -> bool:
+        """Whether the decisions act on the simulation's lock flags (in the lockstep: at the
+        same simulation time in every run) rather than on the detector's HARDWARE status."""
+        return self._flags is not None and self._lockstep is not None
+
     def _on_fault_status(self, stamp: float) -> None:
         """Stop the running execution, from the fault's stamp, when a fault says so (in a
         thread of its own: the stop waits for joint states)."""
@@ -88,7 +93,7 @@ class ArmExecutor(ArmObserver):
         if monitor is None or monitor.stop_time is not None:
             return
         reaction = self.faults.now()
-        if self._flags is not None and self._lockstep is not None:
+        if self._decides_locks():
             reaction = without_locks(reaction)  # the decisions see the locks, stamp by stamp
         reason = reaction.stop_reason(monitor.watches_force)
         if reason is not None:
@@ -170,7 +175,7 @@ class ArmExecutor(ArmObserver):
                     stamp, joints = self._joint_stamp, dict(self._joints)
                 if arrived:
                     self._wait_stream(monitor, stamp)
-            flags = self._flags if self._lockstep is not None else None  # lockstep: exact
+            flags = self._flags if self._decides_locks() else None
             if arrived and flags is not None and monitor.stop_time is None:
                 fault = flags.stop_reason(
                     self.faults.now(), stamp, monitor.watches_force, self.joint_state_timeout_s

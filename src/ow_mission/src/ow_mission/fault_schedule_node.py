@@ -5,10 +5,9 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Any
 
-import rosgraph
 import rospy
 from dynamic_reconfigure import DynamicReconfigureCallbackException
 from dynamic_reconfigure.client import Client
@@ -52,11 +51,19 @@ class FaultScheduleRunner:
 
     Args:
         schedule: the mission file's entries; none: no client, no subscription.
+        publishers: the nodes publishing a topic, from the master (the followers are those of
+            ``/faults/applied``: :meth:`ow_mission.stack.RosMaster.publishers`).
         lockstep: hold the simulation at each entry (the simulation offers a lockstep).
     """
 
-    def __init__(self, schedule: Iterable[ScheduledFault], lockstep: bool = True) -> None:
+    def __init__(
+        self,
+        schedule: Iterable[ScheduledFault],
+        publishers: Callable[[str], list[str]],
+        lockstep: bool = True,
+    ) -> None:
         self.timer = ScheduleTimer(schedule)
+        self._publishers = publishers
         self.applied: list[AppliedFault] = []
         self._lock = threading.RLock()
         self._followed = threading.Condition()
@@ -158,7 +165,7 @@ class FaultScheduleRunner:
                 due = self._hold_s
             # Ask the simulation only near the hold: it stands at or before it.
             if due is None or self._clock < due - 0.05:
-                time.sleep(_POLL_S)
+                self._stop.wait(_POLL_S)
                 continue
             try:
                 stamp = wait_until_held(LOCKSTEP_NAME, 0.5)
@@ -198,12 +205,9 @@ class FaultScheduleRunner:
         """Wait until every follower has applied the first change after version ``before``
         (the server published it before it answered); the followers that have not."""
         try:
-            publishers, _, _ = rosgraph.Master(rospy.get_name()).getSystemState()
+            followers = self._publishers(APPLIED_TOPIC)
         except Exception as error:  # the master is gone: the mission ends anyway
             return [f"the master ({error})"]
-        followers: list[str] = next(
-            (nodes for topic, nodes in publishers if topic == APPLIED_TOPIC), []
-        )
         deadline = time.monotonic() + FOLLOWERS_TIMEOUT_S
 
         def late() -> list[str]:

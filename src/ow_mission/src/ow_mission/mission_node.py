@@ -150,7 +150,7 @@ class MissionRunner:
         rospy.Subscriber("/clock", Clock, self._on_clock, queue_size=10)
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=10)
         rospy.Subscriber("/power", Power, self._on_power, queue_size=EVERY_MESSAGE)
-        self._faults = FaultScheduleRunner(self.config.faults, lockstep=self._hold)
+        self._faults = FaultScheduleRunner(self.config.faults, stack.master.publishers, self._hold)
         # All connected before the first state is published: equal runs record equal messages.
         if not wait_until(lambda: not stack.master.unconnected(), 10.0):
             print("[mission] not every subscription connected within 10 s", flush=True)

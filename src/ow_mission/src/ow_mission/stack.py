@@ -171,6 +171,11 @@ class RosMaster:
                     break
         return missing
 
+    def publishers(self, topic: str) -> list[str]:
+        """The nodes that have registered a publisher of ``topic``."""
+        publishers, _, _ = self.call("getSystemState")
+        return next((list(nodes) for name, nodes in publishers if name == topic), [])
+
     def offered_by(self, node: str) -> tuple[set[str], set[str]]:
         """(services, published topics) that node ``node`` (e.g. ``/sim``) has registered."""
         publishers, _, services = self.call("getSystemState")

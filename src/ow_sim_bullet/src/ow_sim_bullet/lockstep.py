@@ -40,6 +40,10 @@ class ClientState:
     hold_until: float | None
     last_ack_wall: float
 
+    def holds(self, now: float) -> bool:
+        """Whether it holds the simulation at sim time ``now`` (s)."""
+        return self.hold_until is not None and now >= self.hold_until - EPSILON
+
 
 @dataclass(order=True)
 class _Command:
@@ -124,7 +128,7 @@ class Lockstep:
         state of ``now - latency``; None when it may step. Holds are reported first."""
         waiting = None
         for name, client in self.clients.items():
-            if client.hold_until is not None and now >= client.hold_until - EPSILON:
+            if client.holds(now):
                 return name, "hold"
             if waiting is None and now > client.acked + self.latency_s + EPSILON:
                 waiting = (name, "ack")
@@ -132,11 +136,7 @@ class Lockstep:
 
     def holding(self, now: float) -> list[str]:
         """The clients that hold the simulation at sim time ``now`` (s), in registration order."""
-        return [
-            name
-            for name, client in self.clients.items()
-            if client.hold_until is not None and now >= client.hold_until - EPSILON
-        ]
+        return [name for name, client in self.clients.items() if client.holds(now)]
 
     def due(self, now: float) -> list[tuple[str, float]]:
         """The commands (joint, set-point rad) to apply before the step from ``now`` (s, sim),
