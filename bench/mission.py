@@ -3,9 +3,13 @@
 Runs ``rosrun ow_mission mission`` on the default mission (config/mission.yaml) as a user would,
 with its run directory in a temporary folder, and prints one JSON line per metric from the run's
 ``report.json``, and the CPU time of each node of its stack (``cpu_s`` per node, read from
-``/proc`` every 0.2 s until it exits: where the time goes, docs/performance.md). Bar (issue 8):
-the whole mission in at most 30 s of wall time on the project's 2-core machine (OceanWATERS:
-~363 s of simulated time at ~0.8x real time); issue 18: 15 s.
+``/proc`` every 0.2 s until it exits: where the time goes, docs/performance.md; the report's
+forked renderers are ``mission_workers``, their CPU time as last read before each exits).
+``peak_pss_mb`` is the largest sum of the processes' proportional set sizes at one reading: the
+memory the stack uses together, where ``peak_memory_mb`` (the mission's own figure) adds each
+process's high-water mark, whenever it was reached, and counts shared pages once per process.
+Bar (issue 8): the whole mission in at most 30 s of wall time on the project's 2-core machine
+(OceanWATERS: ~363 s of simulated time at ~0.8x real time); issue 18: 15 s, 500 MB.
 
     source env.sh && python bench/mission.py [mission.yaml]
 """
@@ -28,26 +32,58 @@ from ow_mission.mission_config import DEFAULT_MISSION_FILE
 CPU_POLL_S = 0.2
 
 
-def node_cpu(mission_pid: int, seen: dict[int, tuple[str, float]]) -> None:
-    """Update ``seen`` (pid -> (node, CPU s)) from /proc: the mission and every ROS node (a
-    process with ``__name:=``) and the master."""
+def _pss_mb(pid: str) -> float:
+    """MB, the process's proportional set size: its private pages plus its share of the pages
+    it shares (libraries, copy-on-write pages of a fork), so that the sum over processes is the
+    memory they use together."""
+    try:
+        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+            if line.startswith("Pss:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return 0.0
+
+
+def node_cpu(mission_pid: int, seen: dict[tuple[int, int], tuple[str, float, float]]) -> float:
+    """Update ``seen`` ((pid, start time) -> (node, CPU s, peak resident MB)) from /proc: the
+    mission, every ROS node (a process with ``__name:=``), the master and the mission's other
+    children (the report's forked renderers, ``mission_workers``). Returns MB, the sum of their
+    PSS now."""
     tick = os.sysconf("SC_CLK_TCK")
+    pss_mb = 0.0
     for entry in os.listdir("/proc"):
         if not entry.isdigit():
             continue
         try:
             raw = Path(f"/proc/{entry}/cmdline").read_bytes().split(b"\0")
             stat = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
+            status = Path(f"/proc/{entry}/status").read_text().splitlines()
         except OSError:
             continue
         args = [a.decode(errors="replace") for a in raw if a]
+        if not args:  # an exited process not yet waited for: nothing more to read
+            continue
         names = [a.split(":=", 1)[1] for a in args if a.startswith("__name:=")]
         if int(entry) == mission_pid:
             names = ["mission"]
         elif any(a.endswith("rosmaster") for a in args[:2]):
             names = ["rosmaster"]
+        elif not names and int(stat[1]) == mission_pid:
+            names = ["mission_workers"]
         if names and not any(a.endswith("rosrun") for a in args[:2]):
-            seen[int(entry)] = (names[0], (int(stat[11]) + int(stat[12])) / tick)
+            hwm_kb = next((int(x.split()[1]) for x in status if x.startswith("VmHWM:")), 0)
+            cpu_s = (int(stat[11]) + int(stat[12])) / tick
+            # An exiting process (a zombie) has no VmHWM any more: keep the largest seen. Keyed
+            # by pid and start time: the report's workers get the pids of the exited nodes.
+            # A node is briefly a copy of the mission between fork and exec: its name is the
+            # one it has once it runs.
+            key = (int(entry), int(stat[19]))
+            name, cpu_before, mb_before = seen.get(key, (names[0], 0.0, 0.0))
+            name = name if names[0] == "mission_workers" else names[0]
+            seen[key] = (name, max(cpu_s, cpu_before), max(hwm_kb / 1024, mb_before))
+            pss_mb += _pss_mb(entry)
+    return pss_mb
 
 
 def main() -> int:
@@ -58,15 +94,18 @@ def main() -> int:
         path = Path(tmp) / "mission.yaml"
         path.write_text(yaml.safe_dump(mission))
         started = time.monotonic()
-        seen: dict[int, tuple[str, float]] = {}
+        seen: dict[tuple[int, int], tuple[str, float, float]] = {}
         with (
             tempfile.TemporaryFile("w+") as out,
             subprocess.Popen(
                 ["rosrun", "ow_mission", "mission", str(path)], stdout=out, stderr=out, text=True
             ) as proc,
         ):
+            peak_pss_mb = peak_pss_at_s = 0.0
             while proc.poll() is None:
-                node_cpu(proc.pid, seen)
+                pss_mb = node_cpu(proc.pid, seen)
+                if pss_mb > peak_pss_mb:
+                    peak_pss_mb, peak_pss_at_s = pss_mb, time.monotonic() - started
                 time.sleep(CPU_POLL_S)
             out.seek(0)
             output = out.read()
@@ -83,14 +122,22 @@ def main() -> int:
         ("sim_time_s", report["sim_time_s"], "s", "simulated time at the end"),
         ("real_time_factor", report["sim_time_s"] / wall, "x", "sim s per wall s"),
         ("planning_wall_time_s", sum(s["planning_time_s"] for s in report["steps"]), "s", ""),
+        ("steps_wall_time_s", sum(s["wall_time_s"] for s in report["steps"]), "s", "the calls"),
+        ("report_wall_time_s", report.get("report_seconds", 0.0), "s", "figures from the bags"),
         ("peak_memory_mb", report["peak_memory_mb"], "MB", "sum of VmHWM of all processes"),
+        ("peak_pss_mb", peak_pss_mb, "MB", "largest sum of PSS of the processes at one time"),
+        ("peak_pss_at_s", peak_pss_at_s, "s", "when, from rosrun"),
     ]
     cpu: dict[str, float] = {}
-    for node, seconds in seen.values():
+    memory: dict[str, float] = {}
+    for node, seconds, peak_mb in seen.values():
         cpu[node] = cpu.get(node, 0.0) + seconds
+        memory[node] = max(memory.get(node, 0.0), peak_mb)
     metrics.append(("cpu_s_total", sum(cpu.values()), "s", "CPU time of the whole stack"))
     for node, seconds in sorted(cpu.items(), key=lambda item: -item[1]):
         metrics.append((f"cpu_s_{node}", seconds, "s", "CPU time of one node"))
+    for node, peak_mb in sorted(memory.items(), key=lambda item: -item[1]):
+        metrics.append((f"peak_mb_{node}", peak_mb, "MB", "VmHWM of one node (largest seen)"))
     for name, value, unit, note in metrics:
         line = {**common, "metric": name, "value": round(float(value), 3), "unit": unit}
         if note:

@@ -5,11 +5,13 @@ terrain): stowed, then the end of each of its nine steps, planned here with the 
 (:class:`~ow_lander.operations.Operations`) in the mission's order with the mission's requests.
 The guarded move's state is where its descent meets the terrain (the execution stops there); the
 terrain is carved under the digging segments as the simulation carves it. Every service is
-planned from every one of those states with each request the mission (or its circular-dig
-variant) sends it, for a few planner seeds, each seed's planner reused across calls as the node
-does. One JSON line per metric: per service the median, p95 and largest wall time (ms), the
-calls and failures, and the median path length (rad) and work (J) of its plans; the whole
-mission's plans' path length and work; RRT*'s work with our objective vs path length.
+planned with each request the mission (or its circular-dig variant) sends it, from the state the
+mission sends it in and from every later one (a request for the trench's bottom, planned before
+the trench is dug, is rightly refused: the scoop would cut into the terrain), for a few
+planner seeds, each seed's planner reused across calls as the node does. One JSON line per
+metric: per service the median, p95 and largest wall time (ms), the calls and failures, and
+the median path length (rad) and work (J) of its plans; the whole mission's plans' path length
+and work; RRT*'s work with our objective vs path length.
 
     source env.sh && python bench/planning.py
 """
@@ -138,26 +140,33 @@ def contact_state(
 def mission_states(
     config: MissionConfig, terrain: HeightMap
 ) -> tuple[
-    dict[str, tuple[FloatArray, HeightMap]], dict[str, list[Mapping[str, Any]]], float, float
+    dict[str, tuple[FloatArray, HeightMap]],
+    dict[str, list[tuple[int, Mapping[str, Any]]]],
+    float,
+    float,
 ]:
     """The default mission planned step by step: the start states (stowed, then after each step)
-    with the terrain then, the requests each service gets, and the mission plans' total path
-    length (rad) and work (J)."""
+    with the terrain then, the requests each service gets (with the index of the state the
+    mission sends each in), and the mission plans' total path length (rad) and work (J)."""
     ops = Operations(ArmPlanner(LanderModel(), PlannerConfig()))
     q = ops.model.q_from(STOWED)
     states = {"stowed": (q, terrain)}
-    requests: dict[str, list[Mapping[str, Any]]] = {name: [] for name in SERVICES}
+    requests: dict[str, list[tuple[int, Mapping[str, Any]]]] = {name: [] for name in SERVICES}
     ground = config.expected_ground
     length = work = 0.0
     for step in STEPS:
         service = step.service.format(dig=config.dig).removeprefix("/arm/")
         request = step.request(config, ground)
-        requests[service].append(request)
+        sent_in = len(states) - 1
+        requests[service].append((sent_in, request))
         if service.startswith("dig_"):
             other = "dig_circular" if service == "dig_linear" else "dig_linear"
             variant = {**request, "parallel": config.parallel, "length": config.dig_length}
             requests[other].append(
-                {k: v for k, v in variant.items() if other == "dig_linear" or k != "length"}
+                (
+                    sent_in,
+                    {k: v for k, v in variant.items() if other == "dig_linear" or k != "length"},
+                )
             )
         plan = ops.plan(service, q, terrain, request)
         length += plan_length(plan)
@@ -176,12 +185,13 @@ def main() -> None:
     config = MissionConfig.load(DEFAULT_MISSION_FILE)
     terrain = parse_terrain_spec(config.terrain_spec)
     states, requests, mission_length, mission_work = mission_states(config, terrain)
-    requests["unstow"] = requests["stow"] = [{}]
+    requests["unstow"] = requests["stow"] = [(0, {})]
     calls = [
         Call(service, state, q, terrain, request)
         for service in SERVICES
-        for state, (q, terrain) in states.items()
-        for request in requests[service]
+        for index, (state, (q, terrain)) in enumerate(states.items())
+        for sent_in, request in requests[service]
+        if index >= sent_in
     ]
     times: dict[str, list[float]] = {name: [] for name in SERVICES}
     lengths: dict[str, list[float]] = {name: [] for name in SERVICES}

@@ -21,6 +21,7 @@ from std_msgs.msg import Header, String
 
 from ow_mission.testing import subscribe
 from ow_msgs.msg import Operation, Power
+from ow_msgs.srv import RecorderProgress
 
 PERIOD_S = 0.01  # 100 Hz of simulation time, as the simulation publishes
 P0_W = 43.0
@@ -46,24 +47,29 @@ def _wait_connected(stack, node, topics):
     _wait(connected, f"{node} connected to {topics}")
 
 
-def _wait_sending(stack, node, topic, count):
-    """Wait until ``node`` writes ``topic`` to ``count`` subscribers over open connections: a
-    subscriber connected on its side is added on the publisher's side last, and what is
-    published before then does not reach it."""
+def _wait_sending(stack, node, topic, subscribers):
+    """Wait until ``node`` writes ``topic`` to each of the ``subscribers`` (node names) over an
+    open connection: a subscriber connected on its side is added on the publisher's side last,
+    and what is published before then does not reach it."""
     uri = stack.master.call("lookupNode", node)
 
     def sending():
         _, _, info = xmlrpc.client.ServerProxy(uri).getBusInfo("/pytest")
-        return sum(1 for c in info if c[2] == "o" and c[4] == topic and c[5]) >= count
+        return set(subscribers) <= {c[1] for c in info if c[2] == "o" and c[4] == topic and c[5]}
 
-    _wait(sending, f"{node} sending {topic} to {count} subscriber(s)")
+    _wait(sending, f"{node} sending {topic} to {subscribers}")
 
 
 def _wait_publishing(publisher, subscribers):
-    """Wait until our ``publisher`` has its connections too (the publisher side adds them last)."""
-    _wait(
-        lambda: publisher.get_num_connections() >= subscribers, f"{subscribers} on {publisher.name}"
-    )
+    """Wait until our ``publisher`` has a connection to each of the ``subscribers`` (node names;
+    the publisher side adds them last). Counting connections is not enough: a subscriber of this
+    process left by an earlier module counts too, and the named node could still miss the first
+    messages."""
+
+    def connected():
+        return set(subscribers) <= {c.endpoint_id for c in publisher.impl.connections}
+
+    _wait(connected, lambda: f"{publisher.name} connected to {subscribers}")
 
 
 class Feeder:
@@ -125,7 +131,7 @@ def test_power_node_sums_the_configured_joints_by_name(ros_stack):
     sub = subscribe("/subset/power", Power, received.append)
     feeder = Feeder("/subset/joint_states")
     _wait_connected(ros_stack, "/power_subset", ["/subset/joint_states"])
-    _wait_publishing(feeder.joint_states, 1)
+    _wait_publishing(feeder.joint_states, ["/power_subset"])
     _wait(lambda: sub.get_num_connections() > 0, "the /subset/power connection")
     for k in range(101):  # 1 s; the joint order changes every message
         names = ["j_a", "j_c", "j_b"] if k % 2 else ["j_c", "j_b", "j_a"]
@@ -174,8 +180,10 @@ def test_sigint_leaves_a_complete_bag_that_ros_tools_and_the_analysis_read(ros_s
     _wait_connected(
         ros_stack, "/record_sigint", ["/clock", "/power", "/joint_states", "/arm/operation"]
     )
-    _wait_publishing(feeder.joint_states, 2)  # the power node and the recorder
-    _wait_sending(ros_stack, "/power", "/power", 1)
+    _wait_publishing(feeder.joint_states, ["/power", "/record_sigint"])
+    # Latched: a connection added after the START marker would get only the END one.
+    _wait_publishing(feeder.operation, ["/record_sigint"])
+    _wait_sending(ros_stack, "/power", "/power", ["/record_sigint"])
     names = ["j_shou_pitch", "j_prox_pitch"]
     n = 201  # 2 s
     for k in range(n):
@@ -188,6 +196,11 @@ def test_sigint_leaves_a_complete_bag_that_ros_tools_and_the_analysis_read(ros_s
         lambda: status.latest.get("messages") == 2 * n + 2,
         lambda: f"{2 * n + 2} recorded messages (status: {status.latest})",
     )
+    # How far each topic is written: what a mission waits on before it stops the stack.
+    progress = rospy.ServiceProxy("/record_sigint/progress", RecorderProgress)()
+    assert list(progress.topics) == ["/arm/operation", "/joint_states", "/power"]
+    assert list(progress.messages) == [2, n, n]
+    assert progress.latest_s[1] == progress.latest_s[2] == pytest.approx(stamp.to_sec())
     recorder.signal(signal.SIGINT)
     assert recorder.proc.wait(timeout=20) == 0
     bags = sorted(tmp_path.glob("*.bag"))
@@ -240,7 +253,7 @@ def test_sigkill_loses_only_the_open_file(ros_stack, tmp_path):
     status = Status("record_kill")
     feeder = Feeder("/kill/joint_states")
     _wait_connected(ros_stack, "/record_kill", ["/clock", "/kill/joint_states"])
-    _wait_publishing(feeder.joint_states, 1)
+    _wait_publishing(feeder.joint_states, ["/record_kill"])
     n = 351  # 3.5 s of simulation time: three full files and an open one
     for k in range(n):
         feeder.step(k, ["j"], [0.0], [0.0], start_s=200.0)

@@ -10,6 +10,7 @@ from rosbags.typesys import get_types_from_msg
 
 from ow_mission.fault_report import (
     FaultRecording,
+    FaultReportError,
     bit_names,
     detections,
     fault_summary,
@@ -137,6 +138,14 @@ def test_detections_are_the_first_stamp_each_bit_was_set_and_when_it_cleared(tmp
         ("/system_faults_status", "ARM_EXECUTION_ERROR", pytest.approx(HARDWARE_S), None),
         ("/system_faults_status", "ARM_GOAL_ERROR", pytest.approx(44.0), None),
     ]
+
+
+def test_an_unreadable_bag_is_an_error_naming_it(tmp_path):
+    bags = _write_bags(tmp_path / "bags")
+    junk = tmp_path / "bags" / "junk.bag"
+    junk.write_bytes(b"not a bag")
+    with pytest.raises(FaultReportError, match=r"cannot read .*junk\.bag"):
+        read_fault_recording([*bags, junk])
 
 
 def test_the_summary_names_the_fault_its_detection_the_failed_step_and_the_end(tmp_path):

@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 
 from ow_mission.errors import ConfigError
-from ow_mission.mission import STEPS, MissionReport, PowerTrace, StepResult
+from ow_mission.mission import STEPS, MissionReport, StepResult
 from ow_mission.mission_config import DEFAULT_MISSION_FILE, MissionConfig, config_from_argv
 
 
@@ -80,17 +80,6 @@ def test_the_ground_found_feeds_the_later_steps():
     assert requests["discard_spoil"] == {"x": 1.3, "y": 0.9, "z": 0.4}
     assert requests["deliver_sample"] == {"use_defaults": True}
     assert requests["guarded_move"]["z"] == pytest.approx(config.expected_ground + 0.25)
-
-
-def test_power_trace_windows():
-    trace = PowerTrace()
-    # 10 W mechanical and 53 W total for 10 s, sampled at 1 Hz; 60 W peak at t = 5.
-    for t in range(11):
-        trace.add(float(t), 10.0 * t, 53.0 * t, 60.0 if t == 5 else 53.0)
-    mech, total, peak = trace.window(2.0, 7.5)
-    assert mech == pytest.approx(55.0)
-    assert total == pytest.approx(53.0 * 5.5)
-    assert peak == 60.0
 
 
 def test_report_table_says_what_failed(tmp_path: Path):

@@ -11,7 +11,13 @@ from ow_lander.config import ArmServicesConfig
 from ow_lander.telemetry import TelemetryConfig
 from ow_mission.errors import ConfigError
 from ow_mission.node_config import STACK_NODES, merge, shipped_parameters, stack_parameters
-from ow_power.config import BatteryConfig, PowerConfig, RecorderConfig
+from ow_power.config import (
+    BATTERY_TOPICS,
+    TELEMETRY_TOPICS,
+    BatteryConfig,
+    PowerConfig,
+    RecorderConfig,
+)
 from ow_sim_bullet.config import SimConfig
 from ow_viz.config import VizConfig
 
@@ -78,3 +84,71 @@ def test_the_mission_runs_in_lockstep_unless_node_params_turn_it_off(tmp_path):
     # Else the simulation would wait at t = 0 for arm services that never register.
     assert params["sim"]["lockstep_clients"] == []
     assert params["arm_services"]["execution"]["lockstep_hold"] is False
+
+
+def test_the_mission_drains_the_state_topics_it_records_at_their_rates(tmp_path):
+    from ow_mission.mission import drain_periods, node_parameters
+    from ow_mission.mission_config import MissionConfig
+
+    periods = drain_periods(node_parameters(MissionConfig.from_dict({}), tmp_path))
+    assert periods["/joint_states"] == periods["/power"] == 0.0  # one per joint state
+    assert {periods[t] for t in TELEMETRY_TOPICS} == {0.1}  # the mission's 10 Hz
+    assert {periods[t] for t in BATTERY_TOPICS} == {1.0}  # one battery step per second
+    every = {"node_params": {"telemetry": {"rate_hz": 0}, "battery": {"update_rate_hz": 4.0}}}
+    periods = drain_periods(node_parameters(MissionConfig.from_dict(every), tmp_path))
+    assert {periods[t] for t in TELEMETRY_TOPICS} == {0.0}
+    assert {periods[t] for t in BATTERY_TOPICS} == {0.25}
+    # Only what is recorded is waited for.
+    fewer = {"node_params": {"record": {"topics": ["/joint_states"]}}}
+    assert drain_periods(node_parameters(MissionConfig.from_dict(fewer), tmp_path)) == {
+        "/joint_states": 0.0
+    }
+
+
+def test_a_topic_is_behind_until_it_has_a_message_within_its_period_of_the_end():
+    from ow_mission.mission import topics_behind
+
+    periods = {"/power": 0.0, "/arm_pose": 0.1, "/battery_state": 1.0}
+    end = 40.91
+    # The 0.35 s of /power a loaded run lost; the battery's last step at 40 s is its last.
+    latest = {"/power": 40.56, "/arm_pose": 40.9, "/battery_state": 40.0}
+    assert topics_behind(latest, end, periods) == {"/power": 40.56}
+    latest["/power"] = 40.91
+    assert topics_behind(latest, end, periods) == {}
+    latest["/arm_pose"] = 40.8  # 0.11 s before the end: the 40.9 s message is still to come
+    assert topics_behind(latest, end, periods) == {"/arm_pose": 40.8}
+    # A sum of 0.01 s steps is not exactly the end, and a topic never recorded is not waited for.
+    assert topics_behind({"/power": sum([0.01] * 4091)}, end, periods) == {}
+    assert topics_behind({}, end, periods) == {}
+
+
+def test_the_mission_runs_the_monitors_as_components_of_one_node(tmp_path):
+    from ow_mission.mission import MONITORS, node_parameters, stack_processes
+    from ow_mission.mission_config import MissionConfig
+
+    config = MissionConfig.from_dict({"node_params": {"telemetry": {"rate_hz": 0}}})
+    params = node_parameters(config, tmp_path)
+    processes = stack_processes(params, "circular")
+    assert [p.executable for p in processes] == [
+        "record",
+        "sim",
+        "arm_services",
+        "faults",
+        "monitors",
+    ]
+    # Every node of the stack runs: on its own or as a component.
+    assert {p.executable for p in processes[:-1]} | set(MONITORS) == set(PARSERS)
+    monitors = processes[-1]
+    assert monitors.package == "ow_mission"
+    # Each component's parameters in the node's namespace of its name (the detector has none).
+    assert monitors.params == {c: params[c] for c in ("power", "battery", "telemetry", "viz")}
+    assert monitors.params["telemetry"]["rate_hz"] == 0
+    assert set(monitors.topics) == {
+        "/power",
+        "/battery_state_of_charge",
+        "/robot_description",
+        "/arm_joint_positions",
+        "/system_faults_status",
+    }
+    assert "/arm/dig_circular" in processes[2].services
+    assert "/arm/dig_linear" not in processes[2].services

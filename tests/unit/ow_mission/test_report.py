@@ -13,15 +13,11 @@ import pytest
 
 from ow_lander.description import URDF_PATH
 from ow_lander.terrain import HeightMap
+from ow_mission.errors import ReplayError
 from ow_mission.plots import DEPTH_TOLERANCE_M, TrenchGeometry, detector_trace, trench_profile
+from ow_mission.recording import read_recording
 from ow_mission.render import Camera, camera_axes, fit_camera
-from ow_mission.replay import (
-    ReplayError,
-    frame_times,
-    make_replay,
-    read_recording,
-    step_at,
-)
+from ow_mission.replay import frame_times, make_replay, step_at
 from ow_mission.report import image_links, write_run_report
 from ow_power.bagwriter import SplitBagWriter
 from ow_power.synthetic import BagMessages, Segment, write_run
@@ -324,7 +320,14 @@ def test_a_short_replay_has_its_frames_captions_and_rate(run_dir, tmp_path):
     recording = read_recording(sorted((run_dir / "bags").glob("*.bag")))
     steps = [("unstow", 10.0, 13.0), ("guarded_move", 13.0, 17.0), ("grind", 17.0, 19.5)]
     result = make_replay(
-        recording, steps, tmp_path / "r.gif", max_frames=4, fps=10.0, width=160, height=120
+        recording,
+        steps,
+        tmp_path / "r.gif",
+        max_frames=4,
+        fps=10.0,
+        width=160,
+        height=120,
+        workers=1,
     )
     assert result.frames == 4 and result.fps == 10.0
     with Image.open(tmp_path / "r.gif") as gif:
@@ -332,6 +335,85 @@ def test_a_short_replay_has_its_frames_captions_and_rate(run_dir, tmp_path):
         assert gif.info["duration"] == 100  # ms: 10 frames per second
         assert gif.size == (result.width, result.height)
         assert gif.size[1] > 120  # the caption band above the scene
+
+
+def test_workers_make_the_same_gif_byte_for_byte_and_count_their_cpu(run_dir, tmp_path):
+    recording = read_recording(sorted((run_dir / "bags").glob("*.bag")))
+    steps = [("unstow", 10.0, 13.0), ("guarded_move", 13.0, 17.0), ("grind", 17.0, 19.5)]
+    made = {}
+    for workers in (1, 2, 3):
+        seen: list[tuple[int, int]] = []
+        result = make_replay(
+            recording,
+            steps,
+            tmp_path / f"w{workers}.gif",
+            max_frames=7,
+            width=160,
+            height=120,
+            title="synthetic",
+            on_frame=lambda i, n, seen=seen: seen.append((i, n)),
+            workers=workers,
+        )
+        assert seen == [(i, 7) for i in range(7)]
+        assert result.frames == 7
+        assert result.cpu_seconds > 0 and result.seconds > 0
+        made[workers] = (tmp_path / f"w{workers}.gif").read_bytes()
+    assert made[2] == made[1] and made[3] == made[1]
+
+
+def test_a_replay_started_renders_while_the_caller_works_and_is_finished_once(run_dir, tmp_path):
+    from ow_mission.replay import start_replay
+
+    recording = read_recording(sorted((run_dir / "bags").glob("*.bag")))
+    with start_replay(recording, [], tmp_path / "r.gif", max_frames=4, width=160) as rendering:
+        result = rendering.finish()
+        with pytest.raises(ReplayError, match="finished already"):
+            rendering.finish()
+    assert result.frames == 4 and (tmp_path / "r.gif").is_file()
+    with start_replay(recording, [], tmp_path / "c.gif", max_frames=4, width=160) as rendering:
+        rendering.cancel()
+        with pytest.raises(ReplayError, match="cancelled already"):
+            rendering.finish()
+    assert not (tmp_path / "c.gif").exists()
+
+
+def test_a_report_with_renders_lists_its_figures_in_order_with_the_replay_last(tmp_path):
+    """The replay renders in workers while the other figures are made; the report lists it
+    where it always was, after the stills, with every frame."""
+    _write_bags(tmp_path / "bags")
+    document = write_run_report(tmp_path, _document(), renders=True)
+    assert list(document["figures"]) == [
+        "power",
+        "trench_profile",
+        "guarded_move",
+        "still_00",
+        "still_01",
+        "replay",
+    ]
+    assert document["replay"]["frames"] == 96  # 9.5 s of joint states, a frame every 0.1 s
+    assert document["replay"]["cpu_seconds_to_make"] > 0
+    markdown = (tmp_path / "report.md").read_text()
+    for link in image_links(markdown):
+        assert (tmp_path / link).is_file(), link
+    assert image_links(markdown)[-1] == "replay.gif"
+
+
+def test_a_replay_needs_a_process_to_render(run_dir, tmp_path):
+    recording = read_recording(sorted((run_dir / "bags").glob("*.bag")))
+    with pytest.raises(ReplayError, match="workers=0"):
+        make_replay(recording, [], tmp_path / "r.gif", workers=0)
+
+
+def test_unreadable_bags_give_one_note_naming_the_file_and_no_figure(tmp_path):
+    bags = _write_bags(tmp_path / "bags")
+    (tmp_path / "bags" / "zz_junk.bag").write_bytes(b"not a bag")
+    with pytest.raises(ReplayError, match=r"cannot read .*zz_junk\.bag"):
+        read_recording([*bags, tmp_path / "bags" / "zz_junk.bag"])
+    document = write_run_report(tmp_path, _document(), renders=False)
+    assert list(document["figure_notes"]) == ["bags"]
+    assert "zz_junk.bag" in document["figure_notes"]["bags"]
+    assert document["figures"] == {} and "faults" not in document
+    assert image_links((tmp_path / "report.md").read_text()) == []
 
 
 def _ndc(camera: Camera, points: np.ndarray) -> np.ndarray:
@@ -381,7 +463,7 @@ def test_the_detector_is_replayed_from_joint_states_when_not_recorded():
     detector replayed on FK of the joint states fires within a few /tf periods of the stop."""
     from ow_lander.description import UNSTOWED
     from ow_lander.model import LanderModel
-    from ow_mission.replay import Recording
+    from ow_mission.recording import Recording
 
     model = LanderModel()
     q = model.q_from(dict(UNSTOWED))
@@ -403,3 +485,36 @@ def test_the_detector_is_replayed_from_joint_states_when_not_recorded():
     assert np.nanmax(trace.threshold) == pytest.approx(-speed * 0.7, rel=0.05)
     steady = (trace.t_s > 10.5) & (trace.t_s < 13.5)
     assert np.allclose(trace.signal[steady], -speed, rtol=0.02)
+
+
+def test_stills_are_planned_after_their_steps_in_order(tmp_path):
+    from ow_mission.stills import STILLS, plan_stills
+
+    steps = [
+        {"step": "unstow", "sim_end_s": 5.0, "success": True},
+        {"step": "guarded_move", "sim_end_s": 12.25, "success": True},
+        {"step": "grind", "sim_end_s": 30.0, "success": False},
+    ]
+    stills = plan_stills(tmp_path, steps)
+    assert [(s.role, s.path.name, s.t_s) for s in stills] == [
+        ("still_00", "00_guarded_move.png", 12.25),
+        ("still_01", "01_grind.png", 30.0),
+    ]
+    assert stills[0].caption == f"After guarded_move (t = 12.2 s sim): {STILLS['guarded_move']}."
+    assert stills[1].caption.endswith("(the step FAILED).")
+
+
+def test_stills_render_in_their_own_process_and_a_failure_names_what_is_missing(run_dir, tmp_path):
+    from ow_mission.stills import Still, StillsRendering
+
+    recording = read_recording(sorted((run_dir / "bags").glob("*.bag")))
+    good = Still("still_00", tmp_path / "a" / "00_x.png", 12.0, "")
+    done = StillsRendering([good], recording, [(1.6, 0.0, -0.15)]).finish()
+    assert done == [good]
+    from PIL import Image
+
+    assert Image.open(good.path).size == (1024, 768)
+    bad = Still("still_01", tmp_path / "b" / "01_y.png", 12.0, "")
+    bad.path.mkdir(parents=True)  # a directory where the file must go: the child fails
+    with pytest.raises(RuntimeError, match=r"exited with code 1; missing: 01_y.png"):
+        StillsRendering([bad], recording, []).finish()

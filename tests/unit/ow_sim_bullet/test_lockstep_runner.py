@@ -25,7 +25,7 @@ class _Recorder(SimOutputs):
 
     def __init__(self, sim: BulletSim) -> None:  # nothing to publish to
         self.sim = sim
-        self.joint_stamp = -1.0
+        self.joint_stamp = self.terrain_stamp = -1.0
         self.states: list[tuple[float, np.ndarray]] = []
 
     def publish(self, force: bool = False) -> None:
@@ -35,6 +35,9 @@ class _Recorder(SimOutputs):
 
     def after_step(self) -> None:
         self.publish()
+
+    def publish_standing(self, terrain: bool = True) -> None:
+        pass
 
     def flush(self) -> None:
         pass
@@ -60,7 +63,7 @@ def test_stepping_stops_at_a_hold_and_goes_on_once_released(runner):
     assert runner.step_paused(10) == pytest.approx(0.0)  # held where it registered
     runner.lockstep_ack("arm", 0.0, 0.03, [])
     assert runner.step_paused(10) == pytest.approx(0.03)
-    _, stamp, clients, blocked, holding = runner.lockstep_status()
+    _, stamp, clients, blocked, holding, _ = runner.lockstep_status()
     assert (clients, blocked, holding) == (["arm"], ("arm", "hold"), ["arm"])
     assert stamp == pytest.approx(0.02)  # the last state published, of the step from 0.02
 
@@ -71,13 +74,36 @@ def test_a_late_acknowledgement_holds_the_simulation_back_until_it_comes(runner)
     deadline = time.monotonic() + 5.0
     while runner.lockstep_status()[3] is None and time.monotonic() < deadline:
         time.sleep(0.01)
-    now, _, _, blocked, holding = runner.lockstep_status()
+    now, _, _, blocked, holding, _ = runner.lockstep_status()
     assert (blocked, holding) == (("arm", "ack"), [])
     assert now == pytest.approx(LATENCY + 0.01)  # registered at 0: one latency and a step on
     runner.lockstep_ack("arm", 0.5, None, [])
     while runner.lockstep_status()[0] < 0.55 and time.monotonic() < deadline:
         time.sleep(0.01)
     assert runner.lockstep_status()[0] == pytest.approx(0.5 + LATENCY + 0.01)
+
+
+def test_a_simulation_paused_at_a_hold_takes_no_step_when_its_client_leaves(runner):
+    """A mission pauses the simulation where the lockstep holds it, then stops its nodes: the
+    arm services leaving the lockstep must not let it take a step (a replay recorded one more
+    joint state than its original)."""
+    runner.lockstep_register("arm", enable=True, hold=True)
+    runner.lockstep_ack("arm", 0.0, 0.03, [])
+    runner.resume()
+    deadline = time.monotonic() + 5.0
+    while runner.lockstep_status()[4] != ["arm"] and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert runner.lockstep_status()[0] == pytest.approx(0.03)  # held there
+    runner.pause()
+    published = len(runner.outputs.states)
+    runner.lockstep_register("arm", enable=False, hold=False)
+    time.sleep(0.3)  # wall: the thread would have stepped many times by now
+    assert runner.lockstep_status()[0] == pytest.approx(0.03)
+    assert len(runner.outputs.states) == published
+    runner.resume()
+    while runner.lockstep_status()[0] < 0.1 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert runner.lockstep_status()[0] >= 0.1  # and runs on once resumed
 
 
 def _run_with_acks(runner: SimRunner, delay_s: float) -> list[tuple[float, np.ndarray]]:

@@ -69,6 +69,7 @@ def test_throttle_republishes_a_new_version_at_most_every_period():
     throttle.done(0)
     assert not throttle.due(0)
     assert not throttle.due(1)  # changed, but too soon
+    assert throttle.changed(1) and not throttle.changed(0)  # whatever the period
     clock.now += 0.5
     assert throttle.due(1)
     throttle.done(1)

@@ -137,6 +137,9 @@ class _NoOutputs(SimOutputs):
     def after_step(self) -> None:
         pass
 
+    def publish_standing(self, terrain: bool = True) -> None:
+        pass
+
     def flush(self) -> None:
         pass
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import threading
+import time
 
 import pytest
 from rosgraph_msgs.msg import Clock
@@ -176,3 +177,81 @@ def test_a_stopped_runner_answers_no_more(setup):
     runner.stop()
     with pytest.raises(SimError, match="did not answer"):
         runner.call(lambda: None, timeout_s=0.3)
+
+
+def _eventually(condition, timeout_s: float = 5.0) -> bool:
+    """Whether ``condition()`` holds within ``timeout_s`` of wall time (the simulation thread
+    publishes when it next runs its loop)."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.005)
+    return True
+
+
+def test_a_slow_clock_still_reaches_where_the_simulation_stops():
+    """/clock at 10 Hz: between ticks it lags, but after ``~step``, on a pause and at a lockstep
+    hold it is written at the time the simulation stands at (nodes' clocks reach it)."""
+    made = Setup(dataclasses.replace(SimConfig(), clock_rate_hz=10.0, terrain_publish_period=0.0))
+    runner = SimRunner(made.sim, made.outputs, 0.0, True, lambda: False)
+    thread = threading.Thread(target=runner.run, daemon=True)
+    thread.start()
+
+    def last_clock() -> float:
+        return runner.call(lambda: made.recorders["/clock"].messages()[-1].clock.to_sec())
+
+    try:
+        assert runner.step_paused(13) == pytest.approx(0.13)
+        ticks = [m.clock.to_sec() for m in made.recorders["/clock"].messages()]
+        assert ticks == pytest.approx([0.01, 0.1, 0.13])  # the 10 Hz ticks, then where it stopped
+        runner.resume()
+        while runner.call(lambda: made.sim.steps) < 27:
+            pass
+        runner.pause()
+        assert _eventually(lambda: last_clock() == pytest.approx(made.sim.time))
+        runner.lockstep_register("arm", enable=True, hold=True)
+        runner.lockstep_ack("arm", made.sim.time, made.sim.time + 0.04, [])
+        held = runner.step_paused(50)
+        assert held == pytest.approx(made.sim.time) and last_clock() == pytest.approx(held)
+    finally:
+        runner.stop()
+        thread.join(timeout=5.0)
+        made.sim.close()
+
+
+def test_a_terrain_changed_within_the_throttle_goes_out_where_the_simulation_stops():
+    """The terrain is republished at most every ``terrain_publish_period`` s of wall time
+    while the simulation runs, but the one it stands on when paused or held goes out at once:
+    the last terrain of a run is recorded however soon the run ends."""
+    made = Setup(dataclasses.replace(SimConfig(), terrain_publish_period=3600.0))
+    runner = SimRunner(made.sim, made.outputs, 0.0, True, lambda: False)
+    thread = threading.Thread(target=runner.run, daemon=True)
+    thread.start()
+    try:
+        runner.resume()
+        while runner.call(lambda: made.sim.steps) < 5:
+            pass
+        published = len(made.terrain.messages)  # the first, on the first step
+        runner.call(lambda: made.sim.set_terrain(flat(DEFAULT_GROUND_Z - 0.1)))
+        while runner.call(lambda: made.sim.steps) < 10:
+            pass
+        assert len(made.terrain.messages) == published  # changed, but within the hour
+        runner.pause()
+        assert _eventually(lambda: len(made.terrain.messages) == published + 1)
+        assert made.terrain.messages[-1].heights[0] == pytest.approx(DEFAULT_GROUND_Z - 0.1)
+        assert made.terrain.messages[-1].header.stamp.to_sec() == pytest.approx(made.sim.time)
+        # The lockstep status names the newest terrain's stamp: a client planning on the terrain
+        # waits until it has that one.
+        assert runner.lockstep_status()[5] == made.terrain.messages[-1].header.stamp.to_sec()
+        runner.call(lambda: made.sim.set_terrain(flat(DEFAULT_GROUND_Z - 0.2)))
+        runner.lockstep_register("arm", enable=True, hold=True)
+        runner.step_paused(3)  # held where it registered: it stands, the terrain goes out
+        assert made.terrain.messages[-1].heights[0] == pytest.approx(DEFAULT_GROUND_Z - 0.2)
+        assert runner.lockstep_status()[5] == pytest.approx(
+            made.terrain.messages[-1].header.stamp.to_sec(), abs=1e-9
+        )
+    finally:
+        runner.stop()
+        thread.join(timeout=5.0)
+        made.sim.close()

@@ -21,10 +21,9 @@ from ow_lander.execution_node import ArmExecutor
 from ow_lander.model import LanderModel
 from ow_lander.operations import Operations
 from ow_lander.planning import ArmPlanner
-from ow_lander.terrain import HeightMap
+from ow_lander.terrain_node import TerrainFeed
 from ow_lander.trajectory import Trajectory, TrajectoryStore, read_csv
 from ow_msgs import srv
-from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.msg import Operation
 
 #: The planning services: name under /arm/ (the operation's name) and service class.
@@ -59,7 +58,9 @@ class ArmServicesNode:
         execution error stands (:mod:`ow_lander.fault_reaction`).
     Subscribes: ``/joint_states`` (sensor_msgs/JointState, by joint name): the start of every
         plan and the execution monitor; ``/sim/terrain`` (ow_msgs/HeightMap, latched): the
-        terrain checked against; ``/tf``, ``/tf_static``: the scoop tip for ground detection;
+        terrain checked against (in the lockstep, the one the simulation last published:
+        :class:`~ow_lander.terrain_node.TerrainFeed`); ``/tf``, ``/tf_static``: the scoop tip
+        for ground detection;
         ``/arm_end_effector_force_torque`` (owl_msgs/ArmEndEffectorForceTorque, N): the wrist
         force for the force ground detector (``execution/ground_detector: force``).
     Publishes: ``/arm/operation`` (ow_msgs/Operation, START and END of every call, effective
@@ -69,8 +70,8 @@ class ArmServicesNode:
         joints; ``/guarded_move_result`` (ow_msgs/GuardedMoveResult, latched) once per guarded
         descent.
     Parameters (private, read once, see config/arm_services.yaml): ``trajectory_dir``,
-        ``plan_and_execute``, ``fallback_ground_z`` (m), ``terrain_wait_s`` (s), ``planner/*``,
-        ``timing/*``, ``execution/*``.
+        ``plan_and_execute``, ``fallback_ground_z`` (m), ``terrain_wait_s`` (s),
+        ``actionlib_status_frequency`` (Hz), ``planner/*``, ``timing/*``, ``execution/*``.
 
     Execution (the joint states, tf and wrist force, trajectories, holds, ground results, the
     /sim/pause and /sim/resume calls) is wired by :class:`~ow_lander.execution_node.ArmExecutor`.
@@ -87,14 +88,12 @@ class ArmServicesNode:
         self.store = TrajectoryStore(Path(directory))
         self._owner_lock = threading.Lock()
         self.owner: str | None = None
-        self._terrain_changed = threading.Condition(threading.Lock())
-        self._terrain_deadline = time.monotonic() + config.terrain_wait_s
-        self._terrain: HeightMap | None = None
-        self._fallback = HeightMap.flat(config.fallback_ground_z)
         self._operation_id = 0
         self.executor = ArmExecutor(config.execution, self.model)
         self.operation_pub = rospy.Publisher("/arm/operation", Operation, queue_size=20)
-        rospy.Subscriber("/sim/terrain", HeightMapMsg, self._on_terrain, queue_size=1)
+        self.terrain = TerrainFeed(
+            config.terrain_wait_s, config.fallback_ground_z, config.execution.lockstep
+        )
         services = [(name, cls, self._operate, True) for name, cls in OPERATIONS.items()]
         services.append(("publish_trajectory", srv.PublishTrajectory, self._publish, False))
         self.services = [
@@ -102,31 +101,6 @@ class ArmServicesNode:
             for name, cls, body, prefix in services
         ]
         rospy.loginfo("arm_services: trajectories in %s", self.store.directory)
-
-    def _on_terrain(self, msg: HeightMapMsg) -> None:
-        try:
-            terrain = conv.height_map_from_msg(msg)
-        except OwLanderError as error:
-            rospy.logerr("arm_services: ignoring /sim/terrain: %s", error)
-            return
-        with self._terrain_changed:
-            self._terrain = terrain
-            self._terrain_changed.notify_all()
-
-    def _current_terrain(self) -> tuple[HeightMap, str]:
-        """The latest /sim/terrain, waited for until ``terrain_wait_s`` after start-up (it may be
-        on its way), else the fallback (later requests do not wait: no simulation sends it)."""
-        with self._terrain_changed:
-            wait_s = max(0.0, self._terrain_deadline - time.monotonic())
-            self._terrain_changed.wait_for(lambda: self._terrain is not None, timeout=wait_s)
-            terrain = self._terrain
-        if terrain is None:
-            note = (
-                f"no /sim/terrain received: planned against flat ground at "
-                f"z={self.config.fallback_ground_z} m"
-            )
-            return self._fallback, note
-        return terrain, ""
 
     def _handler(self, name: str, service: Any, body: Body, prefix: bool) -> Callable[[Any], Any]:
         """The handler of service ``name`` (class ``service``): the busy policy, the START and
@@ -214,7 +188,7 @@ class ArmServicesNode:
             OwLanderError: no joint state, invalid request or no plan.
         """
         q = self.model.q_from(self.executor.current_joints())
-        terrain, terrain_note = self._current_terrain()
+        terrain, terrain_note = self.terrain.current()
         if terrain_note:
             notes.append(terrain_note)
         plan = self.operations.plan(name, q, terrain, dict(parameters))

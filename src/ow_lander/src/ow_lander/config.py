@@ -210,6 +210,9 @@ class ArmServicesConfig:
             ``/sim/terrain`` has been received.
         terrain_wait_s: s (wall) from start-up during which a request waits for a first
             ``/sim/terrain`` before planning against the fallback ground.
+        actionlib_status_frequency: Hz of sim time, the action servers' periodic status (read
+            by actionlib itself; every goal transition is also published when it happens; > 0:
+            clients count a server as connected once they have its status).
         planner: see :class:`PlannerConfig`.
         timing: see :class:`TimingConfig`.
         execution: see :class:`ExecutionConfig`.
@@ -219,6 +222,7 @@ class ArmServicesConfig:
     plan_and_execute: bool = False
     fallback_ground_z: float = DEFAULT_GROUND_Z
     terrain_wait_s: float = 2.0
+    actionlib_status_frequency: float = field(default=5.0, metadata=POSITIVE)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     timing: TimingConfig = field(default_factory=TimingConfig)
     execution: ExecutionConfig = field(default_factory=ExecutionConfig)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Mapping
+from typing import Any
 
 import rospy
 
@@ -54,6 +55,7 @@ class LockstepClient:
         self.registered = False
         self._lock = threading.Lock()
         self._acked = self._sent = 0.0  # s (sim), newest processed / newest sent
+        self._early = -1.0  # s (sim), newest joint state processed before registering
         self._hold_until: float | None = None
         self._publisher = rospy.Publisher(ACK_TOPIC, LockstepAck, queue_size=_ACK_QUEUE)
 
@@ -96,6 +98,11 @@ class LockstepClient:
             self._hold_until = reply.sim_time if hold else None
             self.latency = reply.latency
             self.registered = True
+            # Joint states processed before the reply (the simulation steps on meanwhile): no
+            # later one would come to trigger their acknowledgement, and both would wait.
+            if self._early > self._acked:
+                self._acked = self._early
+                self._send(None)
         return float(reply.sim_time)
 
     def ack(
@@ -103,7 +110,8 @@ class LockstepClient:
     ) -> None:
         """Everything up to the joint state of ``stamp`` (s, sim) is processed; ``setpoints``
         (rad by joint name) take effect at ``stamp + latency``. Acknowledgements before
-        :meth:`register` are not sent; older stamps count as the newest.
+        :meth:`register` are not sent (those during it are, when it completes); older stamps
+        count as the newest.
 
         Without set-points an acknowledgement is sent only once it is half a latency newer than
         the last one sent (or with ``force``): each publication costs the node a thread switch,
@@ -112,6 +120,7 @@ class LockstepClient:
         """
         with self._lock:
             if not self.registered or self.latency is None:
+                self._early = max(self._early, stamp)  # acknowledged on registering
                 return
             self._acked = max(self._acked, stamp)
             if setpoints or force or self._acked >= self._sent + self.latency / 2 - STAMP_SLACK_S:
@@ -156,17 +165,8 @@ class LockstepClient:
 
     def published_stamp(self) -> float:
         """s (sim), the stamp of the newest joint state the simulation has published (what a
-        subscriber has once it has caught up; the simulation's ``~lockstep_status``).
-
-        Raises:
-            LockstepError: the status service failed.
-        """
-        try:
-            reply = rospy.ServiceProxy(STATUS_SERVICE, LockstepStatus)()
-        except (rospy.ROSException, rospy.ServiceException) as error:
-            msg = f"{STATUS_SERVICE} failed: {error}"
-            raise LockstepError(msg) from error
-        return float(reply.joint_state_stamp)
+        subscriber has once it has caught up; :func:`simulation_status`; LockstepError)."""
+        return float(simulation_status().joint_state_stamp)
 
     def settle(self, timeout_s: float) -> None:
         """While holding: wait until the simulation stands at the hold and this node's clock
@@ -235,6 +235,16 @@ def wait_until_held(client: str, timeout_s: float) -> float:
                 )
                 raise LockstepError(msg)
             time.sleep(0.005)
+    except (rospy.ROSException, rospy.ServiceException) as error:
+        msg = f"{STATUS_SERVICE} failed: {error}"
+        raise LockstepError(msg) from error
+
+
+def simulation_status() -> Any:
+    """The simulation's ``~lockstep_status`` now (ow_msgs/LockstepStatus response: its time,
+    its newest joint state's and terrain's stamps, the clients; LockstepError)."""
+    try:
+        return rospy.ServiceProxy(STATUS_SERVICE, LockstepStatus)()
     except (rospy.ROSException, rospy.ServiceException) as error:
         msg = f"{STATUS_SERVICE} failed: {error}"
         raise LockstepError(msg) from error

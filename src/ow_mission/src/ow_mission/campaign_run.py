@@ -207,8 +207,9 @@ def summarise_run(run_dir: Path) -> dict[str, Any]:
     minus the first terrain's height at the contact)."""
     from ow_lander.description import GRINDER_TIP_FRAME, SCOOP_TIP_FRAME
     from ow_lander.model import LanderModel
+    from ow_mission.errors import ReplayError
     from ow_mission.mission import load_report
-    from ow_mission.replay import ReplayError, read_recording
+    from ow_mission.recording import read_recording
 
     report = load_report(run_dir)
     steps = [

@@ -11,3 +11,7 @@ class ConfigError(OwMissionError):
 
 class HarnessError(OwMissionError, RuntimeError):
     """A master or node could not be started, or a wait timed out."""
+
+
+class ReplayError(OwMissionError):
+    """The bags cannot be read, or lack what a figure needs."""

@@ -4,8 +4,10 @@ What the mission injected and when (``report.json``'s ``fault_schedule``, writte
 mission), when each fault bit was first set on each owl_msgs status topic (bit names from the
 messages' own constants), how the mission ended, the energy over the steps and the battery at
 the end; ``battery.png``: state of charge and remaining useful life over the mission with the
-injections and detections marked. :func:`read_fault_recording` reads the bags (rosbags, as the
-rest of the report); :func:`fault_summary` computes the section; :func:`plot_battery` only draws.
+injections and detections marked. :func:`read_fault_recording` reads the bags
+(:func:`ow_power.bagread.read_messages`), :func:`fault_recording_from_messages` takes messages
+the report read already with its other topics; :func:`fault_summary` computes the section;
+:func:`plot_battery` only draws.
 """
 
 from __future__ import annotations
@@ -16,10 +18,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rosbags.highlevel import AnyReader, AnyReaderError
-
 from ow_mission.errors import OwMissionError
 from ow_mission.plots import _pyplot
+from ow_power.bagread import read_messages
+from ow_power.errors import BagReadError
 from owl_msgs.msg import (
     ArmFaultsStatus,
     PanTiltFaultsStatus,
@@ -36,6 +38,8 @@ STATUS_TOPICS: dict[str, type] = {
 }
 SOC_TOPIC = "/battery_state_of_charge"
 RUL_TOPIC = "/battery_remaining_useful_life"
+#: The topics :func:`fault_recording_from_messages` uses.
+TOPICS = (*STATUS_TOPICS, SOC_TOPIC, RUL_TOPIC)
 
 
 class FaultReportError(OwMissionError):
@@ -69,34 +73,45 @@ class FaultRecording:
 def read_fault_recording(bags: Sequence[Path]) -> FaultRecording:
     """Read the status topics, SOC and RUL of a run's (split) bags.
 
-    A message's time is its header stamp, or its bag time when the stamp is zero (the
-    detector's first, latched status).
-
     Raises:
         FaultReportError: a bag is unreadable.
     """
-    recording = FaultRecording()
-    wanted = {*STATUS_TOPICS, SOC_TOPIC, RUL_TOPIC}
     try:
-        with AnyReader(list(bags)) as reader:
-            connections = [c for c in reader.connections if c.topic in wanted]
-            for connection, bag_ns, raw in reader.messages(connections=connections):
-                msg: Any = reader.deserialize(raw, connection.msgtype)
-                stamp = float(msg.header.stamp.sec) + 1e-9 * float(msg.header.stamp.nanosec)
-                t = stamp if stamp > 0 else bag_ns * 1e-9
-                if connection.topic == SOC_TOPIC:
-                    recording.soc.append((t, float(msg.value)))
-                elif connection.topic == RUL_TOPIC:
-                    recording.rul.append((t, float(msg.value)))
-                else:
-                    recording.status.setdefault(connection.topic, []).append((t, int(msg.value)))
-    except (AnyReaderError, OSError, ValueError, KeyError) as exc:
+        messages = read_messages(bags, TOPICS)
+    except BagReadError as exc:
         msg_text = f"cannot read {[str(b) for b in bags]}: {exc}"
         raise FaultReportError(msg_text) from exc
-    recording.soc.sort(key=lambda item: item[0])
-    recording.rul.sort(key=lambda item: item[0])
-    for series in recording.status.values():
-        series.sort(key=lambda item: item[0])
+    return fault_recording_from_messages(messages)
+
+
+def fault_recording_from_messages(
+    messages: Mapping[str, Sequence[tuple[int, Any]]],
+) -> FaultRecording:
+    """The :class:`FaultRecording` of messages read already (e.g. with the report's other topics).
+
+    A message's time is its header stamp, or its bag time when the stamp is zero (the
+    detector's first, latched status).
+
+    Args:
+        messages: topic -> (bag time ns, message) in time order, as
+            :func:`ow_power.bagread.read_messages` returns for (at least) :data:`TOPICS`.
+    """
+
+    def series(topic: str) -> list[tuple[float, Any]]:
+        found = []
+        for bag_ns, msg in messages.get(topic, []):
+            stamp = float(msg.header.stamp.sec) + 1e-9 * float(msg.header.stamp.nanosec)
+            found.append((stamp if stamp > 0 else bag_ns * 1e-9, msg.value))
+        return sorted(found, key=lambda item: item[0])
+
+    recording = FaultRecording(
+        soc=[(t, float(value)) for t, value in series(SOC_TOPIC)],
+        rul=[(t, float(value)) for t, value in series(RUL_TOPIC)],
+    )
+    for topic in STATUS_TOPICS:
+        status = [(t, int(value)) for t, value in series(topic)]
+        if status:
+            recording.status[topic] = status
     return recording
 
 

@@ -35,10 +35,11 @@ class FaultScheduleRunner:
     In the lockstep (``lockstep``, the mission's default) the simulation is held at each
     entry's due time by the lockstep client ``/mission_faults`` (which follows no joint state:
     it only holds); the change is sent there, and the simulation goes on once every follower of
-    ``/faults/changes`` (the nodes advertising ``/faults/applied``: simulation, battery,
-    detector) has applied it. The change then holds from exactly the due time, whatever the
-    machine's load (``applied_s`` = ``due_s``). Without the lockstep an entry is sent at the
-    first ``/clock`` at or after its due time, the simulation running on meanwhile.
+    ``/faults/changes`` (the nodes advertising ``/faults/applied``: simulation, monitors with
+    the battery and the detector) has applied it. The change then holds from exactly the due
+    time, whatever the machine's load (``applied_s`` = ``due_s``). Without the lockstep an entry
+    is sent at the first ``/clock`` at or after its due time, the simulation running on
+    meanwhile.
 
     Subscribes: ``/clock`` (rosgraph_msgs/Clock); ``/faults/changes`` (ow_msgs/FaultChange) and
         ``/faults/applied`` (ow_msgs/FaultChangeApplied): the followers' word.

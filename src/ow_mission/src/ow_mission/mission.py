@@ -7,22 +7,18 @@ against a live stack (``rosrun ow_mission mission``).
 
 from __future__ import annotations
 
-import bisect
 import datetime as dt
 import json
-import math
-import threading
-import time
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
+from ow_lander.description import STAMP_SLACK_S
 from ow_mission.fault_schedule import AppliedFault
 from ow_mission.mission_config import MissionConfig
-from ow_mission.node_config import stack_parameters
+from ow_mission.node_config import STACK_NODES, stack_parameters
+from ow_power.config import BATTERY_TOPICS, TELEMETRY_TOPICS
 
 
 @dataclass
@@ -83,12 +79,6 @@ class StepResult:
         self.ground_z = float(contact.z)
         self.ground_position = (float(contact.x), float(contact.y), self.ground_z)
 
-    def take_energies(self, mechanical_j: float, total_j: float, peak_w: float) -> None:
-        """Fill in the step's energy window (J, J, W; see :meth:`PowerTrace.window`)."""
-        self.mechanical_energy_j = mechanical_j
-        self.energy_wh = total_j / 3600.0
-        self.peak_power_w = peak_w
-
 
 @dataclass
 class MissionReport:
@@ -102,6 +92,9 @@ class MissionReport:
     peak_memory_mb: float = 0.0
     ground_z: float | None = None
     error: str = ""
+    #: What the bags may lack: the recorder had not written everything the run's last state
+    #: caused when the stack had to stop ("" when it had).
+    recording_note: str = ""
     #: What became of each entry of the mission's fault schedule.
     fault_schedule: list[AppliedFault] = field(default_factory=list)
 
@@ -156,6 +149,7 @@ class MissionReport:
             "real_time_factor": self.real_time_factor,
             "peak_memory_mb": self.peak_memory_mb,
             "ground_z": self.ground_z,
+            "recording_note": self.recording_note,
             "config": {k: v for k, v in asdict(self.config).items()},
             "steps": [{**asdict(s), "sim_time_s": s.sim_time_s} for s in self.steps],
             "fault_schedule": [f.to_json() for f in self.fault_schedule],
@@ -251,56 +245,6 @@ STEPS: tuple[Step, ...] = (
 )
 
 
-class PowerTrace:
-    """Cumulative energies from ``/power``, to integrate any window of simulation time."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self.t: list[float] = []
-        self.mechanical_j: list[float] = []
-        self.energy_j: list[float] = []
-        self.total_w: list[float] = []
-
-    def add(self, t: float, mechanical_j: float, energy_j: float, total_w: float) -> None:
-        """Record one ``/power`` message (stamp s, cumulative J, J, instantaneous W)."""
-        with self._lock:
-            self.t.append(t)
-            self.mechanical_j.append(mechanical_j)
-            self.energy_j.append(energy_j)
-            self.total_w.append(total_w)
-
-    def last_stamp_s(self) -> float:
-        """s, stamp of the newest message (-inf before the first)."""
-        with self._lock:
-            return self.t[-1] if self.t else -math.inf
-
-    def wait_until(self, t: float, timeout_s: float) -> bool:
-        """Wait (wall time) until a message stamped at or after ``t`` s has arrived.
-
-        The subscriber runs behind the simulation: a window closed before its last messages
-        arrived would miss its end. Returns False when none came within ``timeout_s``.
-        """
-        deadline = time.monotonic() + timeout_s
-        while self.last_stamp_s() < t:
-            if time.monotonic() > deadline:
-                return False
-            time.sleep(0.01)
-        return True
-
-    def window(self, t0: float, t1: float) -> tuple[float, float, float]:
-        """(mechanical J, total J, peak total W) between simulation times t0 and t1."""
-        with self._lock:
-            if len(self.t) < 2:
-                return 0.0, 0.0, 0.0
-            t = np.asarray(self.t)
-            mech = float(np.interp(t1, t, self.mechanical_j) - np.interp(t0, t, self.mechanical_j))
-            total = float(np.interp(t1, t, self.energy_j) - np.interp(t0, t, self.energy_j))
-            i0 = bisect.bisect_left(self.t, t0)
-            i1 = bisect.bisect_right(self.t, t1)
-            peak = max(self.total_w[i0:i1], default=0.0)
-        return mech, total, float(peak)
-
-
 def write_report(report: MissionReport) -> None:
     """Write ``report.json``, ``report.md`` and the figures into the run directory, all made
     from the run's bags after the run (:func:`ow_mission.report.write_run_report`).
@@ -335,8 +279,60 @@ FAULT_TOPICS = (
     "/faults/changes",
 )
 
+#: Hz of sim time, /clock in the mission's stack (the simulation's default: 100 Hz). Every
+#: node takes every /clock message; at 100 Hz that was 16 % of the mission's CPU time.
+MISSION_CLOCK_HZ = 10.0
+
+#: Hz of sim time, the arm services' periodic action status in the mission (actionlib's
+#: default: 5 Hz). At 5 Hz the 14 servers' heartbeats took a fifth of the node's CPU time.
+MISSION_ACTION_STATUS_HZ = 1.0
+
 #: Hz of sim time, the rate of the telemetry topics the mission records.
 MISSION_TELEMETRY_HZ = 10.0
+
+
+def drain_periods(params: Mapping[str, Mapping[str, Any]]) -> dict[str, float]:
+    """The recorded topics that follow the simulation's states, each with its period (s of sim
+    time; 0: one message per joint state), from the stack's parameters (:func:`node_parameters`).
+
+    When the simulation stands at the end of a run, each node may still be working through the
+    states it has received. The recorder holds all of the run once each of these topics has a
+    message within its period of the end (:func:`topics_behind`); stopping the stack before
+    that lost the last 0.35 s of ``/power`` of a loaded run, and made its replay differ.
+    """
+    telemetry_hz = float(params["telemetry"].get("rate_hz", 0.0))
+    battery_hz = float(params["battery"].get("update_rate_hz", 1.0))
+    periods = {"/joint_states": 0.0, "/power": 0.0}
+    periods.update(dict.fromkeys(TELEMETRY_TOPICS, 1.0 / telemetry_hz if telemetry_hz > 0 else 0.0))
+    periods.update(dict.fromkeys(BATTERY_TOPICS, 1.0 / battery_hz))
+    recorded = set(params["record"]["topics"])
+    return {topic: period for topic, period in periods.items() if topic in recorded}
+
+
+#: s (wall), how long a mission waits for the recorder to hold its run before stopping the stack.
+DRAIN_TIMEOUT_S = 30.0
+
+
+def topics_behind(
+    latest_s: Mapping[str, float], end_s: float, periods: Mapping[str, float]
+) -> dict[str, float]:
+    """Of the ``periods``' topics, those the recorder has not yet written up to ``end_s``: a
+    topic is behind while its newest record time is more than its period before the end.
+    Topics the recorder has had no message of are not waited for (their node is not running).
+
+    Args:
+        latest_s: topic -> s (sim), the newest record time written (``~progress``).
+        end_s: s (sim), where the simulation stands.
+        periods: topic -> s (sim), from :func:`drain_periods`.
+
+    Returns:
+        topic -> its newest record time, for each topic behind.
+    """
+    return {
+        topic: latest_s[topic]
+        for topic, period in periods.items()
+        if topic in latest_s and latest_s[topic] < end_s - period - STAMP_SLACK_S
+    }
 
 
 def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str, Any]]:
@@ -354,12 +350,18 @@ def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str,
             # Deterministic (docs/determinism.md): the simulation waits for the arm services'
             # decisions on every joint state, from t = 0 until they have registered ...
             "lockstep_clients": ["/arm_services"],
+            # Every rospy node receives /clock; the mission's nodes work on the states' stamps
+            # and the clock reaches every time the simulation stops at (docs/performance.md).
+            "clock_rate_hz": MISSION_CLOCK_HZ,
         },
         "arm_services": {
             "plan_and_execute": True,
             "trajectory_dir": str(run_dir / "trajectories"),
             # ... and stops where each step ends, so the next starts there whenever it is called.
             "execution": {"lockstep": True, "lockstep_hold": True},
+            # actionlib's heartbeat of each of the 14 servers' status (every transition is
+            # published when it happens; clients connect on the first status they receive).
+            "actionlib_status_frequency": MISSION_ACTION_STATUS_HZ,
         },
         # OceanWATERS' telemetry in the bags at 10 Hz of sim time (the full-rate /joint_states
         # are there too); node_params {telemetry: {rate_hz: 0}} records one per joint state.
@@ -374,10 +376,7 @@ def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str,
                 "/sim/terrain",
                 "/sim/scoop_tip_ground",
                 "/arm/ground_detector",
-                "/battery_state_of_charge",
-                "/battery_remaining_useful_life",
-                "/battery_temperature",
-                "/battery_state",
+                *BATTERY_TOPICS,
                 # The faults: what the server holds, what the simulation flags, what the
                 # detector reports (the report's faults section).
                 *FAULT_TOPICS,
@@ -390,6 +389,63 @@ def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str,
         execution["lockstep_hold"] = False
         params["sim"]["lockstep_clients"] = []
     return params
+
+
+#: The stack's nodes the mission runs as components of one node, ``ow_mission monitors``: each
+#: stream is then received once for all of them, and one Python process starts instead of five.
+MONITORS = ("power", "battery", "telemetry", "viz", "detector")
+
+#: What shows a node of the stack is ready: (services it offers, topics it publishes).
+READY: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "record": ((), ()),
+    "power": ((), ("/power",)),
+    "battery": ((), ("/battery_state_of_charge",)),
+    "sim": (("/sim/resume",), ("/joint_states",)),
+    "arm_services": ((), ()),  # and the services of the mission's steps
+    "viz": ((), ("/robot_description",)),
+    "telemetry": ((), ("/arm_joint_positions",)),
+    "faults": (("/faults/set_parameters",), ("/faults/parameter_updates",)),
+    "detector": ((), ("/system_faults_status",)),
+}
+
+
+@dataclass(frozen=True)
+class StackProcess:
+    """A process of the mission's stack: ``rosrun <package> <executable>`` with ``params`` in
+    its private namespace, ready once it offers ``services`` and publishes ``topics``."""
+
+    package: str
+    executable: str
+    params: dict[str, Any]
+    services: tuple[str, ...]
+    topics: tuple[str, ...]
+
+
+def stack_processes(params: Mapping[str, dict[str, Any]], dig: str) -> list[StackProcess]:
+    """The mission's processes, in start order, from the nodes' parameters
+    (:func:`node_parameters`): every node of :data:`STACK_NODES` on its own, but those of
+    :data:`MONITORS`, which are components of one ``monitors`` node, each with its parameters
+    in that node's namespace of its name. The arm services are ready once they offer the
+    services of the mission's steps (``dig``: "linear" or "circular")."""
+    ready = {**READY, "arm_services": (tuple(s.service.format(dig=dig) for s in STEPS), ())}
+    processes = []
+    monitors: dict[str, Any] = {}
+    services: tuple[str, ...] = ()
+    topics: tuple[str, ...] = ()
+    for node in STACK_NODES:
+        ready_services, ready_topics = ready[node.executable]
+        if node.executable in MONITORS:
+            if params[node.executable]:
+                monitors[node.executable] = params[node.executable]
+            services, topics = services + ready_services, topics + ready_topics
+            continue
+        processes.append(
+            StackProcess(
+                node.package, node.executable, params[node.executable], *ready[node.executable]
+            )
+        )
+    processes.append(StackProcess("ow_mission", "monitors", monitors, services, topics))
+    return processes
 
 
 def new_run_dir(config: MissionConfig, workspace: Path) -> Path:

@@ -17,25 +17,25 @@ from typing import Any
 import rospy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_srvs.srv import Trigger
 
 import ow_msgs.srv
-from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.lockstep_node import LockstepError, wait_until_held
 from ow_mission.action_client_node import ActionStepClient
 from ow_mission.errors import ConfigError
 from ow_mission.fault_schedule_node import FaultScheduleRunner
 from ow_mission.mission import (
+    DRAIN_TIMEOUT_S,
     STEPS,
     MissionReport,
-    PowerTrace,
     StepResult,
+    drain_periods,
     new_run_dir,
     node_parameters,
+    stack_processes,
     write_report,
 )
 from ow_mission.mission_config import USAGE, MissionConfig, config_from_argv
-from ow_mission.node_config import STACK_NODES
+from ow_mission.report import preload
 from ow_mission.stack import (
     HarnessError,
     NodeProcess,
@@ -45,10 +45,7 @@ from ow_mission.stack import (
     private_master,
     wait_until,
 )
-from ow_msgs.msg import Power
-
-#: s of wall time to wait for /power to catch up with the simulation clock.
-POWER_WAIT_S = 5.0
+from ow_mission.stack_client_node import sim_clock, stands_at, wait_recorded
 
 
 class MissionRunner:
@@ -64,11 +61,11 @@ class MissionRunner:
         self.config = config
         self.run_dir = new_run_dir(config, workspace)
         self.report = MissionReport(config, self.run_dir)
-        self.power = PowerTrace()
         self._clock = self._joint_stamp = 0.0  # s (sim), the newest received
         self._lock = threading.Lock()
         self._actions = ActionStepClient(config.dig) if config.interface == "actions" else None
         self._faults: FaultScheduleRunner | None = None
+        self._drain: dict[str, float] = {}
         self._hold = False  # the stack holds the simulation between steps (lockstep)
 
     # ------------------------------------------------------------------------- ROS callbacks
@@ -89,9 +86,6 @@ class MissionRunner:
             with self._lock:
                 if self._joint_stamp == stamp or time.monotonic() > deadline:
                     return self._joint_stamp
-
-    def _on_power(self, m: Any) -> None:
-        self.power.add(m.header.stamp.to_sec(), m.mechanical_energy, m.energy, m.total_power)
 
     # --------------------------------------------------------------------------------- run
     def run(self) -> MissionReport:
@@ -116,8 +110,19 @@ class MissionRunner:
                         self._faults.stop()
                         self.report.fault_schedule = self._faults.results()
                     self.report.peak_memory_mb = peak_memory_mb(node.proc.pid for node in nodes)
-                    self.report.sim_time_s = max(self._clock, self._last_joint_stamp())
-                    stack.shutdown()  # the recorder closes its bag on SIGINT
+                    # Nothing more happens: stopping the nodes lets the simulation step on
+                    # (a lockstep client leaving), and a loaded run recorded one step more.
+                    sim_clock("pause", between_steps=True)
+                    try:  # where the lockstep holds it (its last /clock may be on its way)
+                        end, state = stands_at(5.0) if self._hold else (self._clock, -1.0)
+                    except LockstepError:
+                        end, state = 0.0, -1.0
+                    state = state if state >= 0.0 else self._last_joint_stamp()
+                    self.report.sim_time_s = max(end, state, self._clock)
+                    # The nodes may still be working through the last states (a loaded
+                    # machine lost 0.35 s of /power): stop once the recorder has all of them.
+                    self.report.recording_note = wait_recorded(state, self._drain, DRAIN_TIMEOUT_S)
+                    stack.shutdown(last=("record",))  # it closes its bag on SIGINT
         except (HarnessError, ConfigError) as exc:
             self.report.error = str(exc)
         self.report.wall_time_s = time.monotonic() - wall0
@@ -127,48 +132,36 @@ class MissionRunner:
     def _start(self, stack: RosStack) -> list[NodeProcess]:
         rospy.init_node("mission", disable_signals=True)
         params = node_parameters(self.config, self.run_dir)
+        self._drain = drain_periods(params)
         self._hold = bool(params["arm_services"]["execution"].get("lockstep_hold"))
         # Started side by side (the simulation paused), then waited for: each node spends a
         # second or two importing, and they need nothing from one another to start.
-        ready: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
-            "record": ((), ()),
-            "power": ((), ("/power",)),
-            "battery": ((), ("/battery_state_of_charge",)),
-            "sim": (("/sim/resume",), ("/joint_states",)),
-            "arm_services": (tuple(s.service.format(dig=self.config.dig) for s in STEPS), ()),
-            "viz": ((), ("/robot_description",)),
-            "telemetry": ((), ("/arm_joint_positions",)),
-            "faults": (("/faults/set_parameters",), ("/faults/parameter_updates",)),
-            "detector": ((), ("/system_faults_status",)),
-        }
+        processes = stack_processes(params, self.config.dig)
         nodes = [
-            stack.start_node(n.package, n.executable, params=params[n.executable], wait=False)
-            for n in STACK_NODES
+            stack.start_node(p.package, p.executable, params=p.params, wait=False)
+            for p in processes
         ]
-        for node, spec in zip(nodes, STACK_NODES, strict=True):
-            stack.wait_ready(node, *ready[spec.executable])
+        for node, process in zip(nodes, processes, strict=True):
+            stack.wait_ready(node, process.services, process.topics)
+        threading.Thread(target=preload, name="report_preload", daemon=True).start()
         rospy.Subscriber("/clock", Clock, self._on_clock, queue_size=10)
-        rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=10)
-        rospy.Subscriber("/power", Power, self._on_power, queue_size=EVERY_MESSAGE)
+        if not self._hold:  # the lockstep says where each step starts and ends
+            rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=10)
         self._faults = FaultScheduleRunner(self.config.faults, stack.master.publishers, self._hold)
         # All connected before the first state is published: equal runs record equal messages.
         if not wait_until(lambda: not stack.master.unconnected(), 10.0):
             print("[mission] not every subscription connected within 10 s", flush=True)
         self._faults.start(self._clock)  # those due at t = 0 in place; the next one held for
-        error = self._sim_clock("resume")  # the sim offers /sim/resume: start its clock
+        error = sim_clock("resume")  # the sim offers /sim/resume: start its clock
         if error is not None:
             msg = f"could not start the simulation's clock: {error}"
-            raise HarnessError(msg)
-        # The first step's energy window must start inside the trace.
-        if not self.power.wait_until(0.0, POWER_WAIT_S):
-            msg = f"no /power message within {POWER_WAIT_S} s of subscribing"
             raise HarnessError(msg)
         return nodes
 
     def _run_steps(self) -> None:
         c = self.config
         ground = c.expected_ground
-        held = None  # where the lockstep holds the simulation since the last step
+        held = self._held()  # where the lockstep holds the simulation (None: no lockstep)
         for step in STEPS:
             service = step.service.format(dig=c.dig)
             srv_name = step.srv_type.format(Dig=c.dig.capitalize())
@@ -181,7 +174,7 @@ class MissionRunner:
             result.sim_start_s = self._last_joint_stamp() if held is None else held
             if self._faults is not None:  # faults due at the step's start, before it runs
                 self._faults.step_started(step.name, result.sim_start_s)
-            self._sim_clock("resume", between_steps=True)
+            sim_clock("resume", between_steps=True)
             wall0 = time.monotonic()
             try:
                 if self._actions is not None:
@@ -196,18 +189,12 @@ class MissionRunner:
                 result.message = f"no answer within step_timeout_s = {c.step_timeout_s:g} s (wall)"
                 response = None
             result.wall_time_s = time.monotonic() - wall0
-            try:  # in the lockstep the step ends where the arm services hold the simulation
-                held = wait_until_held("/arm_services", c.step_timeout_s) if self._hold else None
-            except LockstepError as exc:
-                held = None
-                print(f"[mission] {exc}", flush=True)
-            self._sim_clock("pause", between_steps=True)
-            # /power is computed from each /joint_states: the step's window ends at the last.
+            held = self._held()  # in the lockstep the step ends where it is held
+            sim_clock("pause", between_steps=True)
+            # Its energies come from the bags' /power over [sim_start_s, sim_end_s] (the report).
             result.sim_end_s = self._last_joint_stamp() if held is None else held
-            self.power.wait_until(result.sim_end_s, POWER_WAIT_S)
             if response is not None:
                 result.take_response(response)
-            result.take_energies(*self.power.window(result.sim_start_s, result.sim_end_s))
             if result.ground_z is not None:
                 ground = self.report.ground_z = result.ground_z
             print(
@@ -219,17 +206,17 @@ class MissionRunner:
                 self.report.error = f"step {step.name} ({service}) failed: {result.message}"
                 return
 
-    def _sim_clock(self, action: str, between_steps: bool = False) -> str | None:
-        """Call ``/sim/pause`` or ``/sim/resume``; None on success, else what went wrong (between
-        steps only printed: the step's own checks report a simulation that does not run)."""
+    def _held(self) -> float | None:
+        """s, where the arm services hold the simulation (the lockstep); None without the
+        lockstep, or when it did not hold within a step's timeout (said why)."""
+        if not self._hold:
+            return None
         try:
-            reply = rospy.ServiceProxy(f"/sim/{action}", Trigger)()
-            error = None if reply.success else f"/sim/{action} refused: {reply.message}"
-        except (rospy.ROSException, rospy.ServiceException) as exc:
-            error = f"/sim/{action} failed: {exc}"
-        if error is not None and between_steps:
-            print(f"[mission] {error}", flush=True)
-        return error
+            # max: before its first joint state the simulation reports -1 (it starts at 0).
+            return max(wait_until_held("/arm_services", self.config.step_timeout_s), 0.0)
+        except LockstepError as exc:
+            print(f"[mission] {exc}", flush=True)
+            return None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -246,5 +233,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"[mission] {config.name}: writing {runner.run_dir}", flush=True)
     report = runner.run()
     print(report.table())
+    if report.recording_note:
+        print(f"[mission] {report.recording_note}")
     print(f"[mission] report: {runner.run_dir / 'report.md'}")
     return 0 if report.success else 1

@@ -196,6 +196,19 @@ class SceneRenderer:
         image = np.reshape(np.asarray(rgba, dtype=np.uint8), (camera.height, camera.width, 4))
         return np.ascontiguousarray(image[:, :, :3])
 
+    def picture(
+        self,
+        joint_positions: Mapping[str, float],
+        terrain: HeightMap | None = None,
+        camera: Camera | None = None,
+        around: Iterable[tuple[float, float, float]] = (),
+    ) -> npt.NDArray[np.uint8]:
+        """The lander at ``joint_positions`` on ``terrain`` (see :func:`render_scene`)."""
+        self.set_joints(joint_positions)
+        cam = camera or fit_camera(scene_points(self.robot_points(), around))
+        self.set_terrain(None if terrain is None else visible_terrain(terrain, cam))
+        return self.render(cam)
+
 
 def scene_points(
     robot: npt.NDArray[np.float64], around: Iterable[tuple[float, float, float]] = ()
@@ -226,10 +239,7 @@ def render_scene(
         (height, width, 3) RGB image.
     """
     with SceneRenderer(urdf_path) as scene:
-        scene.set_joints(joint_positions)
-        cam = camera or fit_camera(scene_points(scene.robot_points(), around))
-        scene.set_terrain(None if terrain is None else visible_terrain(terrain, cam))
-        return scene.render(cam)
+        return scene.picture(joint_positions, terrain, camera, around)
 
 
 def crop_terrain(terrain: HeightMap, points: npt.ArrayLike, margin: float = 0.2) -> HeightMap:

@@ -1,157 +1,35 @@
-"""What a mission's bags hold for its pictures, and the animated replay made from them (no ROS).
+"""The animated replay of a mission, made from its bags (no ROS).
 
-:func:`read_recording` reads the joint positions, the terrains and the ground-detector samples
-of a run's (split) bags with rosbags; :func:`frame_times` picks the replay's frames;
-:func:`make_replay` renders them with :class:`ow_mission.render.SceneRenderer` into a GIF with
-a caption per frame.
+:func:`frame_times` picks the replay's frames from a :class:`ow_mission.recording.Recording`;
+:func:`make_replay` renders them with :class:`ow_mission.render.SceneRenderer` into a GIF with a
+caption per frame, in worker processes (two by default: TinyRenderer and the GIF's
+palette quantisation cost ~65 ms per frame); :func:`start_replay` starts that rendering and
+returns, so that the caller can make other figures until :meth:`ReplayRendering.finish`.
 """
 
 from __future__ import annotations
 
-import bisect
+import multiprocessing
+import signal
 import time
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
+from concurrent.futures import Future, ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
-from rosbags.highlevel import AnyReader, AnyReaderError
 
 from ow_lander.terrain import HeightMap
-from ow_mission.errors import OwMissionError
+from ow_mission.errors import ReplayError
+from ow_mission.recording import FloatArray, Recording
 
-FloatArray = npt.NDArray[np.float64]
+if TYPE_CHECKING:
+    from ow_mission.render import Camera
 
-JOINT_STATES_TOPIC = "/joint_states"
-TERRAIN_TOPIC = "/sim/terrain"
-DETECTOR_TOPIC = "/arm/ground_detector"
-GUARDED_RESULT_TOPIC = "/guarded_move_result"
-
-
-class ReplayError(OwMissionError):
-    """The bags cannot be read, or lack what a figure needs."""
-
-
-@dataclass(frozen=True)
-class DetectorSample:
-    """One ``/arm/ground_detector`` message (ow_msgs/GroundDetectorSignal).
-
-    Attributes:
-        t_s: s, simulation time of the sample.
-        detector: "velocity" or "force".
-        signal: m/s or N.
-        moving_average: same unit.
-        threshold: same unit.
-        contact: True at the sample where contact was declared.
-    """
-
-    t_s: float
-    detector: str
-    signal: float
-    moving_average: float
-    threshold: float
-    contact: bool
-
-
-@dataclass
-class Recording:
-    """A run's bags, as the report's figures need them.
-
-    Attributes:
-        bags: the files read, in recording order.
-        joint_t: (N,) s, stamps of ``/joint_states``.
-        joint_names: names of the columns of ``joint_positions``.
-        joint_positions: (N, n) rad.
-        terrains: (stamp s, terrain) of every ``/sim/terrain`` message, in time order.
-        detector: the ``/arm/ground_detector`` samples (empty when none was recorded).
-        contacts: (stamp s, (3,) m) of successful ``/guarded_move_result`` messages.
-    """
-
-    bags: list[Path]
-    joint_t: FloatArray
-    joint_names: list[str]
-    joint_positions: FloatArray
-    terrains: list[tuple[float, HeightMap]] = field(default_factory=list)
-    detector: list[DetectorSample] = field(default_factory=list)
-    contacts: list[tuple[float, FloatArray]] = field(default_factory=list)
-
-    def joints_at(self, t_s: float) -> dict[str, float]:
-        """rad by name: the last joint state at or before ``t_s`` (the first one before it)."""
-        i = max(int(np.searchsorted(self.joint_t, t_s, side="right")) - 1, 0)
-        return dict(zip(self.joint_names, self.joint_positions[i].tolist(), strict=True))
-
-    def terrain_at(self, t_s: float) -> HeightMap | None:
-        """The last terrain published at or before ``t_s`` (the first one before it)."""
-        if not self.terrains:
-            return None
-        stamps = [t for t, _ in self.terrains]
-        i = max(bisect.bisect_right(stamps, t_s) - 1, 0)
-        return self.terrains[i][1]
-
-
-def _stamp_s(msg: Any) -> float:
-    return float(msg.header.stamp.sec) + 1e-9 * float(msg.header.stamp.nanosec)
-
-
-def read_recording(bags: Sequence[Path]) -> Recording:
-    """Read the joint states, terrains, detector samples and contacts of ``bags``.
-
-    Terrains are stamped with their bag time (the receipt time on the simulation clock: the
-    first, latched one may carry a zero header stamp).
-
-    Raises:
-        ReplayError: a bag is unreadable, or there is no ``/joint_states``.
-    """
-    wanted = {JOINT_STATES_TOPIC, TERRAIN_TOPIC, DETECTOR_TOPIC, GUARDED_RESULT_TOPIC}
-    names: list[str] = []
-    stamps: list[float] = []
-    rows: list[FloatArray] = []
-    recording = Recording(list(bags), np.zeros(0), [], np.zeros((0, 0)))
-    try:
-        with AnyReader(list(bags)) as reader:
-            connections = [c for c in reader.connections if c.topic in wanted]
-            for connection, bag_ns, raw in reader.messages(connections=connections):
-                msg: Any = reader.deserialize(raw, connection.msgtype)
-                topic = connection.topic
-                if topic == JOINT_STATES_TOPIC:
-                    if not names:
-                        names = list(msg.name)
-                    position = dict(zip(msg.name, msg.position, strict=False))
-                    stamps.append(_stamp_s(msg))
-                    rows.append(np.array([position.get(n, np.nan) for n in names]))
-                elif topic == TERRAIN_TOPIC:
-                    heights = np.asarray(msg.heights, dtype=np.float64).reshape(msg.rows, msg.cols)
-                    terrain = HeightMap(heights, msg.resolution, msg.origin_x, msg.origin_y)
-                    recording.terrains.append((bag_ns * 1e-9, terrain))
-                elif topic == DETECTOR_TOPIC:
-                    recording.detector.append(
-                        DetectorSample(
-                            _stamp_s(msg),
-                            str(msg.detector),
-                            float(msg.signal),
-                            float(msg.moving_average),
-                            float(msg.threshold),
-                            bool(msg.contact),
-                        )
-                    )
-                elif msg.success:
-                    p = msg.position
-                    recording.contacts.append((_stamp_s(msg), np.array([p.x, p.y, p.z])))
-    except (AnyReaderError, OSError, ValueError, KeyError) as exc:
-        msg_text = f"cannot read {[str(b) for b in bags]}: {exc}"
-        raise ReplayError(msg_text) from exc
-    if not stamps:
-        msg_text = f"no {JOINT_STATES_TOPIC} in {[str(b) for b in bags]}"
-        raise ReplayError(msg_text)
-    order = np.argsort(np.asarray(stamps), kind="stable")
-    recording.joint_t = np.asarray(stamps)[order]
-    recording.joint_names = names
-    recording.joint_positions = np.vstack(rows)[order]
-    recording.terrains.sort(key=lambda item: item[0])
-    recording.detector.sort(key=lambda s: s.t_s)
-    return recording
+#: Colours of each frame's GIF palette.
+PALETTE_COLORS = 256
 
 
 def frame_times(t_start: float, t_end: float, max_frames: int, min_step_s: float) -> FloatArray:
@@ -190,8 +68,11 @@ class ReplayResult:
         fps: frames per second of output.
         width: px.
         height: px.
-        seconds: s of wall time to make it.
-        cpu_seconds: s of CPU time of this process to make it (the cost on a shared machine).
+        seconds: s of wall time to make it: choosing the frames, rendering them, writing the
+            GIF (not the caller's own work between :func:`start_replay` and
+            :meth:`ReplayRendering.finish`, while nothing rendered or the frames were ready).
+        cpu_seconds: s of CPU time to make it, of this process and of the workers rendering the
+            frames (the cost on a shared machine).
         sim_span_s: s of simulation time it covers.
     """
 
@@ -205,13 +86,20 @@ class ReplayResult:
     sim_span_s: float
 
 
-def caption_font(size: int) -> Any:
-    """A TrueType font of ``size`` px (matplotlib's DejaVu Sans), PIL's default without one."""
+def caption_font_file() -> str:
+    """The TrueType file of the captions: matplotlib's DejaVu Sans."""
     from matplotlib import font_manager
+
+    return str(font_manager.findfont("DejaVu Sans"))
+
+
+def caption_font(size: int, font_file: str | None = None) -> Any:
+    """A TrueType font of ``size`` px from ``font_file`` (default :func:`caption_font_file`),
+    PIL's default font when it cannot be loaded."""
     from PIL import ImageFont
 
     try:
-        return ImageFont.truetype(font_manager.findfont("DejaVu Sans"), size)
+        return ImageFont.truetype(font_file or caption_font_file(), size)
     except OSError:
         return ImageFont.load_default()
 
@@ -231,6 +119,265 @@ def captioned(image: npt.NDArray[np.uint8], lines: Iterable[str], font: Any) -> 
     return out
 
 
+@dataclass(frozen=True)
+class _Frame:
+    """What one frame of a replay shows: the pose (rad by joint name), the (cropped) terrain
+    and the caption's lines."""
+
+    joints: dict[str, float]
+    terrain: HeightMap | None
+    lines: list[str]
+
+
+@dataclass(frozen=True)
+class _Part:
+    """Consecutive frames of a replay for one process to render, and how."""
+
+    frames: list[_Frame]
+    camera: Camera
+    font_file: str
+    font_size: int
+
+
+@dataclass
+class _Rendered:
+    """A part's frames as palette-mode PIL images, with the s of CPU time its process spent
+    on them and the time.monotonic() (s, system-wide) when they were done."""
+
+    images: list[Any]
+    cpu_s: float
+    done_s: float
+
+
+def _render_part(part: _Part, on_frame: Callable[[int], None] | None = None) -> _Rendered:
+    """Render and caption ``part``'s frames in order with one :class:`SceneRenderer`, each turned
+    into a palette image: the GIF's quantisation, done here so that workers share it. Uses only
+    pybullet, numpy and PIL. ``on_frame`` is called with the index of each frame done."""
+    from PIL import Image
+
+    from ow_mission.render import SceneRenderer
+
+    cpu0 = time.process_time()
+    font = caption_font(part.font_size, part.font_file)
+    images = []
+    with SceneRenderer() as scene:
+        for frame in part.frames:
+            scene.set_joints(frame.joints)
+            # The same object for consecutive frames: the heightfield is rebuilt on changes only.
+            scene.set_terrain(frame.terrain)
+            image = captioned(scene.render(part.camera, shadow=False), frame.lines, font)
+            # Fast octree: a ninth of the median cut's time (16 ms a frame at 512 x 384, a
+            # quarter of the workers' CPU time), and the same colours to the eye.
+            images.append(image.quantize(PALETTE_COLORS, method=Image.Quantize.FASTOCTREE))
+            if on_frame is not None:
+                on_frame(len(images) - 1)
+    return _Rendered(images, time.process_time() - cpu0, time.monotonic())
+
+
+def default_signals() -> None:
+    """A forked worker (of the replay, of the stills) takes the default action on SIGINT and
+    SIGTERM: the caller's handlers (rospy's shutdown) must not run in a copy of it."""
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, signal.SIG_DFL)
+
+
+class ReplayRendering:
+    """A replay whose frames are being rendered (:func:`start_replay`): :meth:`finish` collects
+    them and writes the GIF, :meth:`cancel` drops them. As a context manager, it cancels what
+    was not finished."""
+
+    def __init__(
+        self,
+        path: Path,
+        fps: float,
+        sim_span_s: float,
+        parts: list[_Part],
+        on_frame: Callable[[int, int], None] | None,
+        wall0: float,
+        cpu0: float,
+    ) -> None:
+        """Start rendering ``parts``: one is rendered in this process by :meth:`finish`, more
+        by as many forked workers, starting now."""
+        self.path = path
+        self._fps = fps
+        self._sim_span_s = sim_span_s
+        self._parts = parts
+        self._on_frame = on_frame
+        self._wall0 = wall0
+        self._state = "started"
+        self._executor: ProcessPoolExecutor | None = None
+        self._futures: list[Future[_Rendered]] = []
+        if len(parts) > 1:
+            # fork: the workers start at once, with the frames, without importing anything. A
+            # dead worker fails its future (BrokenProcessPool) where a multiprocessing.Pool hangs.
+            self._executor = ProcessPoolExecutor(
+                max_workers=len(parts),
+                mp_context=multiprocessing.get_context("fork"),
+                initializer=default_signals,
+            )
+            self._futures = [self._executor.submit(_render_part, part) for part in parts]
+        self._started_s = time.monotonic()
+        self._start_wall_s = self._started_s - wall0
+        self._start_cpu_s = time.process_time() - cpu0
+
+    def __enter__(self) -> ReplayRendering:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.cancel()
+
+    def cancel(self) -> None:
+        """Drop the frames: parts not started are cancelled, workers exit after their part.
+        Nothing once finished."""
+        if self._state != "started":
+            return
+        self._state = "cancelled"
+        if self._executor is not None:
+            self._executor.shutdown(wait=False, cancel_futures=True)
+
+    def finish(self) -> ReplayResult:
+        """Wait for the frames (with one process, render them now), then write the GIF.
+
+        Raises:
+            ReplayError: the replay was finished or cancelled already.
+        """
+        if self._state != "started":
+            msg = f"the replay {self.path} was {self._state} already"
+            raise ReplayError(msg)
+        self._state = "finished"
+        called_s, cpu0 = time.monotonic(), time.process_time()
+        count = sum(len(part.frames) for part in self._parts)
+        on_frame = self._on_frame
+        workers_cpu_s = 0.0  # with one process, the rendering is in this process's CPU time
+        if self._executor is None:
+            rendering_from_s = called_s
+            report = None if on_frame is None else (lambda i: on_frame(i, count))
+            rendered = [_render_part(self._parts[0], report)]
+        else:
+            rendering_from_s = self._started_s
+            rendered = []
+            try:
+                for future in self._futures:
+                    first = sum(len(r.images) for r in rendered)
+                    rendered.append(future.result())
+                    for i in range(first, first + len(rendered[-1].images)):
+                        if on_frame is not None:
+                            on_frame(i, count)
+            finally:
+                self._executor.shutdown(wait=True, cancel_futures=True)
+            workers_cpu_s = sum(r.cpu_s for r in rendered)
+        images = [image for r in rendered for image in r.images]
+        ready_s = max(r.done_s for r in rendered)
+        images[0].save(
+            self.path,
+            save_all=True,
+            append_images=images[1:],
+            duration=round(1000.0 / self._fps),
+            loop=0,
+            optimize=False,
+        )
+        # The replay's own time: choosing the frames, rendering them, collecting and writing
+        # them; not the caller's time between start and finish with nothing rendering or with
+        # the frames ready.
+        seconds = (
+            self._start_wall_s
+            + (ready_s - rendering_from_s)
+            + (time.monotonic() - max(called_s, ready_s))
+        )
+        return ReplayResult(
+            self.path,
+            len(images),
+            self._fps,
+            images[0].width,
+            images[0].height,
+            seconds,
+            self._start_cpu_s + (time.process_time() - cpu0) + workers_cpu_s,
+            self._sim_span_s,
+        )
+
+
+def start_replay(
+    recording: Recording,
+    steps: Sequence[tuple[str, float, float]],
+    path: Path,
+    around: Iterable[tuple[float, float, float]] = (),
+    max_frames: int = 160,
+    fps: float = 12.0,
+    width: int = 400,
+    height: int = 300,
+    title: str = "",
+    on_frame: Callable[[int, int], None] | None = None,
+    workers: int = 2,
+) -> ReplayRendering:
+    """Choose the frames and the camera of the replay of the whole recording, and start
+    rendering them; :meth:`ReplayRendering.finish` writes the GIF at ``path``.
+
+    The camera is fixed and framed on every pose of the replay plus the ``around`` points (m,
+    base_link), so nothing leaves the picture; each frame's caption names the step and the
+    simulation time. With ``workers`` > 1 the frames are split into that many contiguous parts,
+    each rendered (and quantised to the GIF's palette) by a forked process with its own pybullet
+    client, while the caller goes on (e.g. with other figures) until it calls ``finish``; the GIF
+    is the same as with one process, byte for byte.
+
+    Args:
+        recording: the run's bags (:func:`ow_mission.recording.read_recording`).
+        steps: (name, start s, end s) of the mission's steps.
+        path: GIF to write.
+        around: points the camera must also see (e.g. the trench).
+        max_frames: upper bound of the frame count (the cost is ~linear in it).
+        fps: frames per second of the GIF.
+        width: px of the rendered scene.
+        height: px of the rendered scene (the caption band is added above).
+        title: first caption line of every frame.
+        on_frame: called with (index, count) for each frame, in order, once it is rendered (with
+            workers, once its worker's part has arrived).
+        workers: processes rendering the frames; 1 renders them in this process, in ``finish``.
+            The workers run only pybullet, numpy and PIL, so the caller may have threads (rospy).
+
+    Raises:
+        ReplayError: ``workers`` < 1.
+    """
+    from ow_mission.render import SceneRenderer, fit_camera, scene_points, visible_terrain
+
+    if workers < 1:
+        msg = f"workers={workers}: the replay needs at least 1 process to render its frames"
+        raise ReplayError(msg)
+    wall0, cpu0 = time.monotonic(), time.process_time()
+    t0, t1 = float(recording.joint_t[0]), float(recording.joint_t[-1])
+    times = frame_times(t0, t1, max_frames, min_step_s=0.1)
+    with SceneRenderer() as scene:
+        extents = []
+        for t in times:
+            scene.set_joints(recording.joints_at(float(t)))
+            extents.append(scene.robot_points())
+    camera = fit_camera(scene_points(np.vstack(extents), around), width=width, height=height)
+    # By content: the recorder repeats the latched terrain at the start of every split file, and
+    # a new object would rebuild the same heightfield. Each recorded terrain is keyed once.
+    by_content: dict[tuple[Any, ...], HeightMap] = {}
+    cropped: dict[int, HeightMap] = {}
+    for _, recorded in recording.terrains:
+        h = recorded.heights
+        key = (h.shape, h.tobytes(), recorded.resolution, recorded.origin_x, recorded.origin_y)
+        if key not in by_content:
+            by_content[key] = visible_terrain(recorded, camera)
+        cropped[id(recorded)] = by_content[key]
+    frames = []
+    for i, t in enumerate(times):
+        terrain = recording.terrain_at(float(t))
+        shown = None if terrain is None else cropped[id(terrain)]
+        lines = [title] if title else []
+        lines.append(
+            f"{step_at(steps, float(t))}   t = {t - t0:6.1f} s sim   frame {i + 1}/{len(times)}"
+        )
+        frames.append(_Frame(recording.joints_at(float(t)), shown, lines))
+    font_file, font_size = caption_font_file(), max(12, height // 26)
+    parts = [
+        _Part(frames[int(part[0]) : int(part[-1]) + 1], camera, font_file, font_size)
+        for part in np.array_split(np.arange(len(frames)), min(workers, len(frames)))
+    ]
+    return ReplayRendering(path, fps, t1 - t0, parts, on_frame, wall0, cpu0)
+
+
 def make_replay(
     recording: Recording,
     steps: Sequence[tuple[str, float, float]],
@@ -242,71 +389,15 @@ def make_replay(
     height: int = 300,
     title: str = "",
     on_frame: Callable[[int, int], None] | None = None,
+    workers: int = 2,
 ) -> ReplayResult:
-    """Render the whole recording into an animated GIF at ``path``.
-
-    The camera is fixed and framed on every pose of the replay plus the ``around`` points (m,
-    base_link), so nothing leaves the picture; each frame's caption names the step and the
-    simulation time.
-
-    Args:
-        recording: the run's bags (:func:`read_recording`).
-        steps: (name, start s, end s) of the mission's steps.
-        path: GIF to write.
-        around: points the camera must also see (e.g. the trench).
-        max_frames: upper bound of the frame count (the cost is ~linear in it).
-        fps: frames per second of the GIF.
-        width: px of the rendered scene.
-        height: px of the rendered scene (the caption band is added above).
-        title: first caption line of every frame.
-        on_frame: called with (index, count) after each frame.
+    """Render the whole recording into an animated GIF at ``path``: :func:`start_replay` (see
+    it for the arguments), then :meth:`ReplayRendering.finish`.
 
     Raises:
-        ReplayError: no joint states to replay.
+        ReplayError: ``workers`` < 1.
     """
-    from ow_mission.render import SceneRenderer, fit_camera, scene_points, visible_terrain
-
-    wall0, cpu0 = time.monotonic(), time.process_time()
-    t0, t1 = float(recording.joint_t[0]), float(recording.joint_t[-1])
-    times = frame_times(t0, t1, max_frames, min_step_s=0.1)
-    font = caption_font(max(12, height // 26))
-    images = []
-    with SceneRenderer() as scene:
-        extents = []
-        for t in times:
-            scene.set_joints(recording.joints_at(float(t)))
-            extents.append(scene.robot_points())
-        seen = scene_points(np.vstack(extents), around)
-        camera = fit_camera(seen, width=width, height=height)
-        cropped: dict[int, HeightMap] = {}
-        for i, t in enumerate(times):
-            scene.set_joints(recording.joints_at(float(t)))
-            terrain = recording.terrain_at(float(t))
-            if terrain is not None and id(terrain) not in cropped:
-                cropped[id(terrain)] = visible_terrain(terrain, camera)
-            scene.set_terrain(None if terrain is None else cropped[id(terrain)])
-            lines = [title] if title else []
-            lines.append(
-                f"{step_at(steps, float(t))}   t = {t - t0:6.1f} s sim   frame {i + 1}/{len(times)}"
-            )
-            images.append(captioned(scene.render(camera, shadow=False), lines, font))
-            if on_frame is not None:
-                on_frame(i, len(times))
-    images[0].save(
-        path,
-        save_all=True,
-        append_images=images[1:],
-        duration=round(1000.0 / fps),
-        loop=0,
-        optimize=False,
-    )
-    return ReplayResult(
-        path,
-        len(images),
-        fps,
-        images[0].width,
-        images[0].height,
-        time.monotonic() - wall0,
-        time.process_time() - cpu0,
-        t1 - t0,
-    )
+    with start_replay(
+        recording, steps, path, around, max_frames, fps, width, height, title, on_frame, workers
+    ) as rendering:
+        return rendering.finish()

@@ -8,6 +8,10 @@ paper's Figure 11), stills in ``renders/`` and ``replay.gif`` (the whole mission
 ``battery.png`` and the faults section (:mod:`ow_mission.fault_report`), then
 ``report.md`` linking each figure that exists, and ``report.json`` with the energies from the bags
 and the figures' file names. ``python -m ow_mission.report RUN_DIR`` rebuilds them for a run.
+
+The bags are read once for all of it (:func:`read_report_messages`: each file opened, each
+message type parsed and each message deserialised once), and the replay's frames are rendered
+by two worker processes while this one makes the other figures.
 """
 
 from __future__ import annotations
@@ -26,15 +30,11 @@ from typing import Any
 import numpy as np
 
 from ow_mission.node_config import stack_parameters
-from ow_mission.replay import Recording, make_replay, read_recording
-
-#: Steps after which a still is rendered, and what it shows.
-STILLS: dict[str, str] = {
-    "guarded_move": "the scoop resting on the ground the guarded move found",
-    "grind": "the grinder lifted out of the freshly ground trench",
-    "dig_sample": "the scoop lifted out of the trench holding the sample",
-    "deliver_sample": "the scoop tipped over the sample dock after the delivery",
-}
+from ow_mission.recording import Recording, recording_from_messages
+from ow_mission.replay import ReplayRendering, start_replay
+from ow_mission.stills import StillsRendering, plan_stills
+from ow_power.bagread import TopicMessages, read_messages
+from ow_power.errors import BagReadError
 
 
 @dataclass
@@ -87,14 +87,32 @@ def _attempt(figures: Figures, role: str, make: Callable[[], str | None]) -> Non
         figures.notes[role] = note
 
 
-def energies_from_bags(
-    run_dir: Path, document: dict[str, Any], bags: Sequence[Path], figures: Figures
-) -> None:
-    """``power.png``, and each step's energies and peaks from the bags written into
-    ``document['steps']`` (the same numbers the plot labels)."""
-    from ow_power.analysis import analyze, plot_power
+def read_report_messages(bags: Sequence[Path]) -> TopicMessages:
+    """Every topic the report uses (:data:`ow_power.analysis.TOPICS`,
+    :data:`ow_mission.recording.TOPICS`, :data:`ow_mission.fault_report.TOPICS`), read from
+    ``bags`` in one pass.
 
-    analysis = analyze(bags)
+    Raises:
+        BagReadError: a bag cannot be read; the message names it.
+    """
+    from ow_mission import fault_report, recording
+    from ow_power import analysis
+
+    return read_messages(bags, {*analysis.TOPICS, *recording.TOPICS, *fault_report.TOPICS})
+
+
+def energies_from_bags(
+    run_dir: Path,
+    document: dict[str, Any],
+    bags: Sequence[Path],
+    messages: TopicMessages,
+    figures: Figures,
+) -> None:
+    """``power.png``, and each step's energies and peaks from the bags' ``messages`` written
+    into ``document['steps']`` (the same numbers the plot labels)."""
+    from ow_power.analysis import analyze_messages, plot_power
+
+    analysis = analyze_messages(messages, bags)
     labels = plot_power(analysis, run_dir / "power.png", windows=step_windows(document))
     for step, label in zip(document["steps"], labels, strict=True):
         window = analysis_window(analysis, label.start_s, label.end_s)
@@ -204,54 +222,45 @@ def guarded_move_figure(
     return None
 
 
-def still_figures(
-    run_dir: Path, document: dict[str, Any], recording: Recording, figures: Figures
-) -> str | None:
-    """Stills (1024x768, framed on the whole arm and the trench) at the end of :data:`STILLS`'
-    steps, from the bags' joint states and terrain."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from ow_mission.render import render_scene
-
+def start_stills(run_dir: Path, document: dict[str, Any], recording: Recording) -> StillsRendering:
+    """Start rendering the stills (1024x768, framed on the whole arm and the trench) at the end
+    of the steps of :data:`ow_mission.stills.STILLS`, from the bags, in a process of their own;
+    :func:`stills_figure` files them."""
     config = document["config"]
     ground = document.get("ground_z") or float(config["expected_ground"])
-    around = trench_points(config, ground)
-    renders = run_dir / "renders"
-    renders.mkdir(exist_ok=True)
-    index = 0
-    for step in document["steps"]:
-        if step["step"] not in STILLS:
-            continue
-        t = float(step["sim_end_s"])
-        path = renders / f"{index:02d}_{step['step']}.png"
-        image = render_scene(recording.joints_at(t), recording.terrain_at(t), around=around)
-        plt.imsave(path, image)
-        role = f"still_{index:02d}"
-        figures.files[role] = f"renders/{path.name}"
-        figures.captions[role] = (
-            f"After {step['step']} (t = {t:.1f} s sim): {STILLS[step['step']]}"
-            f"{'' if step['success'] else ' (the step FAILED)'}."
-        )
-        index += 1
+    stills = plan_stills(run_dir / "renders", document["steps"])
+    return StillsRendering(stills, recording, trench_points(config, ground))
+
+
+def stills_figure(rendering: StillsRendering, figures: Figures) -> str | None:
+    """The stills of :func:`start_stills`, once rendered."""
+    for still in rendering.finish():
+        figures.files[still.role] = f"renders/{still.path.name}"
+        figures.captions[still.role] = still.caption
     return None
 
 
-def replay_figure(
-    run_dir: Path, document: dict[str, Any], recording: Recording, figures: Figures
-) -> str | None:
-    """``replay.gif``: the whole mission, from the bags."""
+def start_replay_figure(
+    run_dir: Path, document: dict[str, Any], recording: Recording
+) -> ReplayRendering:
+    """Start rendering ``replay.gif`` (the whole mission, from the bags) in worker processes;
+    :func:`replay_figure` finishes it."""
     config = document["config"]
     ground = document.get("ground_z") or float(config["expected_ground"])
-    result = make_replay(
+    return start_replay(
         recording,
         step_windows(document),
         run_dir / "replay.gif",
         around=trench_points(config, ground),
         title=str(config.get("name", "mission")),
     )
+
+
+def replay_figure(
+    document: dict[str, Any], rendering: ReplayRendering, figures: Figures
+) -> str | None:
+    """``replay.gif`` of :func:`start_replay_figure`, once its frames are rendered."""
+    result = rendering.finish()
     document["replay"] = {
         "file": "replay.gif",
         "frames": result.frames,
@@ -273,20 +282,20 @@ def replay_figure(
 
 
 def faults_section(
-    run_dir: Path, document: dict[str, Any], bags: Sequence[Path], figures: Figures
+    run_dir: Path, document: dict[str, Any], messages: TopicMessages, figures: Figures
 ) -> str | None:
     """``document['faults']`` (:func:`ow_mission.fault_report.fault_summary`) and
-    ``battery.png``; a note when the bags have no battery data (the section is still made)."""
+    ``battery.png`` from the bags' ``messages`` (none without bags); a note when they have no
+    battery data (the section is still made)."""
     from ow_mission.fault_report import (
         RUL_TOPIC,
         SOC_TOPIC,
-        FaultRecording,
+        fault_recording_from_messages,
         fault_summary,
         plot_battery,
-        read_fault_recording,
     )
 
-    recording = read_fault_recording(bags) if bags else FaultRecording()
+    recording = fault_recording_from_messages(messages)
     document["faults"] = fault_summary(document, recording)
     if not recording.soc and not recording.rul:
         return f"no {SOC_TOPIC} or {RUL_TOPIC} in the bags: no battery figure."
@@ -298,6 +307,103 @@ def faults_section(
         "dashed: a scheduled fault applied, orange dotted: a fault bit first set."
     )
     return None
+
+
+def _report_messages(bags: Sequence[Path], figures: Figures) -> TopicMessages | None:
+    """:func:`read_report_messages` of ``bags`` (none without bags), or None with a note when
+    they cannot be read."""
+    if not bags:
+        figures.notes["bags"] = "No bag was recorded: no figure could be made."
+        return {}
+    messages: TopicMessages | None = None
+
+    def read() -> str | None:
+        nonlocal messages
+        try:
+            messages = read_report_messages(bags)
+        except BagReadError as exc:
+            return f"the bags could not be read, so no figure was made from them: {exc}"
+        return None
+
+    _attempt(figures, "bags", read)
+    return messages
+
+
+def _figures_from_bags(
+    run_dir: Path,
+    document: dict[str, Any],
+    bags: Sequence[Path],
+    messages: TopicMessages,
+    figures: Figures,
+    renders: bool,
+) -> None:
+    """The power plot, then the figures of the replay's :class:`Recording`, in the report's
+    order. The stills and the replay's frames are rendered by processes of their own from the
+    start, alongside the other figures: this process collects them at the end."""
+    recording: Recording | None = None
+    rendering: ReplayRendering | None = None
+    stills: StillsRendering | None = None
+
+    def read_recording() -> str | None:
+        nonlocal recording
+        recording = recording_from_messages(messages, bags)
+        return None
+
+    def start(recording: Recording) -> str | None:
+        nonlocal rendering, stills
+        stills = start_stills(run_dir, document, recording)
+        rendering = start_replay_figure(run_dir, document, recording)
+        return None
+
+    early = Figures()  # notes of the work started first, filed in the report's order below
+    _attempt(early, "bags", read_recording)
+    if recording is not None and renders:
+        _attempt(early, "replay", functools.partial(start, recording))
+    try:
+        _attempt(
+            figures,
+            "power",
+            functools.partial(energies_from_bags, run_dir, document, bags, messages, figures),
+        )
+        if recording is None:
+            figures.notes.update(early.notes)
+            return
+        makers: list[tuple[str, FigureMaker]] = [
+            ("trench_profile", trench_figure),
+            ("guarded_move", guarded_move_figure),
+        ]
+        for role, maker in makers:
+            _attempt(figures, role, functools.partial(maker, run_dir, document, recording, figures))
+        if stills is not None:
+            _attempt(figures, "stills", functools.partial(stills_figure, stills, figures))
+        figures.notes.update(early.notes)
+        if rendering is not None:
+            finish = functools.partial(replay_figure, document, rendering, figures)
+            _attempt(figures, "replay", finish)
+    finally:
+        if rendering is not None:
+            rendering.cancel()
+        if stills is not None:
+            stills.cancel()
+
+
+def preload() -> None:
+    """Import what :func:`write_run_report` imports only when it runs (matplotlib with its Agg
+    backend, pandas through ``ow_power.analysis``, the plots, PIL and pybullet for the
+    renders): a mission does it on a thread while its steps run, where the CPU has room, so
+    that about a second of imports leaves the report's critical path. The replay's and the
+    stills' forked processes then have them too."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot
+    import PIL.Image  # noqa: F401
+    import pybullet  # noqa: F401
+
+    import ow_mission.fault_report
+    import ow_mission.plots
+    import ow_mission.render  # noqa: F401
+    import ow_power.analysis  # noqa: F401
 
 
 def write_run_report(
@@ -319,29 +425,15 @@ def write_run_report(
     figures = Figures()
     wall0 = time.monotonic()
     bags = sorted((run_dir / "bags").glob("*.bag"))
-    if not bags:
-        figures.notes["bags"] = "No bag was recorded: no figure could be made."
-    else:
-        _attempt(figures, "power", lambda: energies_from_bags(run_dir, document, bags, figures))
-        recording: Recording | None = None
-
-        def read() -> str | None:
-            nonlocal recording
-            recording = read_recording(bags)
-            return None
-
-        _attempt(figures, "bags", read)
-        if recording is not None:
-            rec = recording
-            makers: list[tuple[str, FigureMaker]] = [
-                ("trench_profile", trench_figure),
-                ("guarded_move", guarded_move_figure),
-            ]
-            if renders:
-                makers += [("stills", still_figures), ("replay", replay_figure)]
-            for role, maker in makers:
-                _attempt(figures, role, functools.partial(maker, run_dir, document, rec, figures))
-    _attempt(figures, "battery", lambda: faults_section(run_dir, document, bags, figures))
+    messages = _report_messages(bags, figures)
+    if messages is not None and bags:
+        _figures_from_bags(run_dir, document, bags, messages, figures, renders)
+    if messages is not None:
+        _attempt(
+            figures,
+            "battery",
+            functools.partial(faults_section, run_dir, document, messages, figures),
+        )
     document["figures"] = dict(figures.files)
     document["figure_notes"] = dict(figures.notes)
     document["report_seconds"] = time.monotonic() - wall0
@@ -404,6 +496,8 @@ def markdown(run_dir: Path, document: Mapping[str, Any], figures: Figures) -> st
         + (f"z = {ground:.4f} m." if ground is not None else "(none)."),
         "",
     ]
+    if document.get("recording_note"):
+        lines += [f"> Recording: {document['recording_note']}", ""]
     trench = document.get("trench")
     if trench is not None:
         lines += [f"**{trench['verdict']}**", ""]

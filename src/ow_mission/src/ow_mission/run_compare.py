@@ -17,6 +17,7 @@ from typing import Any
 from rosbags.highlevel import AnyReader
 
 from ow_mission.mission import FAULT_STATUS_TOPICS
+from ow_power.bagwriter import starts_with_header
 
 #: report.json entries that measure the machine, not the run.
 WALL_CLOCK_KEYS = frozenset(
@@ -67,7 +68,10 @@ def report_numbers(report: Any, path: str = "") -> dict[str, float]:
 
 
 def raw_messages(run_dir: Path, topic: str) -> list[bytes]:
-    """Every message of ``topic`` in the run's bags, serialised as recorded, in order. A
+    """Every message of ``topic`` in the run's bags, serialised as recorded, in order, with a
+    header's ``seq`` set to 0. rospy numbers a publisher's messages per write and sends a
+    latched message again to each new subscriber, each time with the next number: the ``seq``
+    a recorder gets depends on the order the subscribers connected in, not on the run. A
     latched topic's last message is repeated at the start of each bag file (each file stands
     alone), and where a file starts depends on which topic's message came first: such a repeat
     (the same bytes as the message before it) is left out."""
@@ -79,6 +83,8 @@ def raw_messages(run_dir: Path, topic: str) -> list[bytes]:
         connections = [c for c in reader.connections if c.topic == topic]
         for connection, _, raw in reader.messages(connections=connections):
             data = bytes(raw)
+            if starts_with_header(connection.msgdef.data):
+                data = bytes(4) + data[4:]  # the header's uint32 seq comes first
             latched = getattr(connection.ext, "latching", 0)
             if not (latched and messages and messages[-1] == data):
                 messages.append(data)

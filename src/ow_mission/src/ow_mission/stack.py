@@ -37,11 +37,21 @@ def free_port() -> int:
 
 def _stop_process_group(proc: subprocess.Popen[bytes], timeout_s: float = 10.0) -> None:
     """SIGINT the process group (ROS nodes shut down cleanly on it), then SIGKILL it."""
+    _interrupt_process_group(proc)
+    _end_process_group(proc, timeout_s)
+
+
+def _interrupt_process_group(proc: subprocess.Popen[bytes]) -> None:
+    """SIGINT the process group of a running process: a ROS node shuts down cleanly on it."""
     if proc.poll() is None:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGINT)
-        with contextlib.suppress(subprocess.TimeoutExpired):
-            proc.wait(timeout=timeout_s)
+
+
+def _end_process_group(proc: subprocess.Popen[bytes], timeout_s: float) -> None:
+    """Wait up to ``timeout_s`` for an interrupted process to exit, then SIGKILL its group."""
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        proc.wait(timeout=timeout_s)
     # Children a node started (in its group) must not outlive it either.
     with contextlib.suppress(ProcessLookupError, PermissionError):
         os.killpg(proc.pid, signal.SIGKILL)
@@ -348,10 +358,26 @@ class RosStack:
         self.wait_for_service(name, timeout_s)
         return rospy.ServiceProxy(name, service_class)
 
-    def shutdown(self) -> None:
-        """Stop every node started here and delete the parameters set for them."""
-        for node in reversed(self.nodes):
-            node.stop()
+    def shutdown(self, last: Iterable[str] = ()) -> None:
+        """Stop every node started here and delete the parameters set for them.
+
+        Args:
+            last: names of nodes stopped only once all the others have exited, e.g. a recorder:
+                it then has every message they sent (their connections close after them).
+
+        Each wave is interrupted at once, then waited for (10 s at most, then killed): a node
+        takes about a second to shut rospy down, and one after the other that added up.
+        """
+        later = set(last)
+        for wave in (
+            [node for node in self.nodes if node.name not in later],
+            [node for node in self.nodes if node.name in later],
+        ):
+            for node in reversed(wave):
+                _interrupt_process_group(node.proc)
+            deadline = time.monotonic() + 10.0
+            for node in reversed(wave):
+                _end_process_group(node.proc, max(0.0, deadline - time.monotonic()))
         self.nodes.clear()
         for key in self.params:
             self.master.delete_param(key)

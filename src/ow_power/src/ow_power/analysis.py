@@ -13,6 +13,10 @@ from ``/joint_states`` through the same :class:`~ow_power.model.PowerIntegrator`
 from the START/END markers on ``/arm/operation``. Every energy is eq. 4 with the power of a
 sample held over the interval that ends at it (dt from the stamps, intervals longer than
 ``max_dt_s`` skipped), and an interval straddling an operation's start or end is split at it.
+
+:func:`analyze` reads the bags itself (:func:`ow_power.bagread.read_messages`);
+:func:`analyze_messages` takes the messages of :data:`TOPICS` read already, so that a caller
+needing other topics of the same bags (the mission report) reads them all in one pass.
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ from __future__ import annotations
 import json
 import math
 import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,16 +32,18 @@ from typing import Any
 import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
-from rosbags.highlevel import AnyReader, AnyReaderError
 
+from ow_power.bagread import read_messages
 from ow_power.config import PowerConfig
-from ow_power.errors import AnalysisError, PowerError
+from ow_power.errors import AnalysisError, BagReadError, PowerError
 from ow_power.model import PowerIntegrator, intervals_s
 
 POWER_TOPIC = "/power"
 JOINT_STATES_TOPIC = "/joint_states"
 OPERATION_TOPIC = "/arm/operation"
 GUARDED_MOVE_RESULT_TOPIC = "/guarded_move_result"
+#: The topics :func:`analyze_messages` uses.
+TOPICS = (POWER_TOPIC, JOINT_STATES_TOPIC, OPERATION_TOPIC, GUARDED_MOVE_RESULT_TOPIC)
 
 #: Columns of :attr:`Analysis.power`.
 POWER_COLUMNS = (
@@ -134,51 +140,36 @@ class _BagContents:
     contacts_s: list[float] = field(default_factory=list)
 
 
-def _read(bags: Sequence[Path], want_joint_states: bool) -> _BagContents:
+def _contents(messages: Mapping[str, Sequence[tuple[int, Any]]]) -> _BagContents:
     contents = _BagContents()
-    topics = {POWER_TOPIC, OPERATION_TOPIC, GUARDED_MOVE_RESULT_TOPIC}
-    if want_joint_states:
-        topics.add(JOINT_STATES_TOPIC)
-    try:
-        with AnyReader(list(bags)) as reader:
-            connections = [c for c in reader.connections if c.topic in topics]
-            if not connections:  # an empty selection would mean every connection
-                return contents
-            for connection, _, raw in reader.messages(connections=connections):
-                msg: Any = reader.deserialize(raw, connection.msgtype)
-                topic = connection.topic
-                if topic == POWER_TOPIC:
-                    contents.power.append(
-                        (
-                            _stamp_s(msg),
-                            msg.mechanical_power,
-                            msg.mechanical_power_abs,
-                            msg.total_power,
-                            msg.electrical_power,
-                            msg.auxiliary_power,
-                        )
-                    )
-                elif topic == JOINT_STATES_TOPIC:
-                    contents.joint_states.append(
-                        (_stamp_s(msg), list(msg.name), msg.velocity, msg.effort)
-                    )
-                elif topic == OPERATION_TOPIC:
-                    contents.markers.append(
-                        {
-                            "stamp_s": _stamp_s(msg),
-                            "id": int(msg.id),
-                            "name": msg.name,
-                            "event": int(msg.event),
-                            "parameters": msg.parameters,
-                            "success": bool(msg.success),
-                            "message": msg.message,
-                        }
-                    )
-                elif msg.success:
-                    contents.contacts_s.append(_stamp_s(msg))
-    except (AnyReaderError, OSError, ValueError, KeyError) as exc:
-        msg_text = f"cannot read {[str(b) for b in bags]}: {exc}"
-        raise AnalysisError(msg_text) from exc
+    for _, msg in messages.get(POWER_TOPIC, ()):
+        contents.power.append(
+            (
+                _stamp_s(msg),
+                msg.mechanical_power,
+                msg.mechanical_power_abs,
+                msg.total_power,
+                msg.electrical_power,
+                msg.auxiliary_power,
+            )
+        )
+    for _, msg in messages.get(JOINT_STATES_TOPIC, ()):
+        contents.joint_states.append((_stamp_s(msg), list(msg.name), msg.velocity, msg.effort))
+    for _, msg in messages.get(OPERATION_TOPIC, ()):
+        contents.markers.append(
+            {
+                "stamp_s": _stamp_s(msg),
+                "id": int(msg.id),
+                "name": msg.name,
+                "event": int(msg.event),
+                "parameters": msg.parameters,
+                "success": bool(msg.success),
+                "message": msg.message,
+            }
+        )
+    contents.contacts_s = [
+        _stamp_s(msg) for _, msg in messages.get(GUARDED_MOVE_RESULT_TOPIC, ()) if msg.success
+    ]
     return contents
 
 
@@ -347,9 +338,39 @@ def analyze(
     Raises:
         AnalysisError: a bag is missing or unreadable, or there is no power to analyse.
     """
-    config = config or PowerConfig()
     paths = expand_bag_paths(bags)
-    contents = _read(paths, want_joint_states=True)
+    try:
+        messages = read_messages(paths, TOPICS)
+    except BagReadError as exc:
+        msg = f"cannot read {[str(p) for p in paths]}: {exc}"
+        raise AnalysisError(msg) from exc
+    return analyze_messages(messages, paths, recompute, config)
+
+
+def analyze_messages(
+    messages: Mapping[str, Sequence[tuple[int, Any]]],
+    bags: Sequence[Path],
+    recompute: bool = False,
+    config: PowerConfig | None = None,
+) -> Analysis:
+    """:func:`analyze` of messages read already, e.g. with the other topics a report needs.
+
+    Args:
+        messages: topic -> (bag time ns, message) in time order, as
+            :func:`ow_power.bagread.read_messages` returns for (at least) :data:`TOPICS`.
+        bags: the files they were read from, in order (for :attr:`Analysis.bags` and messages).
+        recompute: compute power from ``/joint_states`` even when ``/power`` was recorded.
+        config: as for :func:`analyze`.
+
+    Returns:
+        The power samples, operations and per-operation figures.
+
+    Raises:
+        AnalysisError: there is no power to analyse.
+    """
+    config = config or PowerConfig()
+    paths = list(bags)
+    contents = _contents(messages)
     if contents.power and not recompute:
         power = _power_frame(contents.power, config.max_dt_s)
         source = POWER_TOPIC

@@ -22,6 +22,23 @@ from ow_power.errors import ConfigError
 #: one section per node, ``power:``, ``record:`` and ``battery:``.
 CONFIG_FILE = Path(__file__).resolve().parents[2] / "config" / "power.yaml"
 
+#: OceanWATERS' telemetry made from the joint states (owl_msgs; the ow_lander telemetry node).
+TELEMETRY_TOPICS: tuple[str, ...] = (
+    "/arm_joint_positions",
+    "/arm_joint_velocities",
+    "/arm_joint_accelerations",
+    "/arm_joint_torques",
+    "/arm_pose",
+    "/pan_tilt_position",
+)
+#: The battery node's topics, one message each per battery period.
+BATTERY_TOPICS: tuple[str, ...] = (
+    "/battery_state_of_charge",
+    "/battery_remaining_useful_life",
+    "/battery_temperature",
+    "/battery_state",
+)
+
 #: Topics the recorder records by default (missing ones are simply absent from the bag).
 DEFAULT_RECORD_TOPICS: tuple[str, ...] = (
     "/power",
@@ -32,12 +49,7 @@ DEFAULT_RECORD_TOPICS: tuple[str, ...] = (
     "/sim/grinder_wrench",
     "/sim/joint_damping",
     # OceanWATERS' telemetry (owl_msgs; the ow_lander telemetry node, the sim's wrist F/T).
-    "/arm_joint_positions",
-    "/arm_joint_velocities",
-    "/arm_joint_accelerations",
-    "/arm_joint_torques",
-    "/arm_pose",
-    "/pan_tilt_position",
+    *TELEMETRY_TOPICS,
     "/arm_end_effector_force_torque",
     # For viewers (RViz through `rosbag play --clock`, Foxglove, Lichtblick): the frames, the
     # robot and the markers of ow_viz; the latched ones are repeated in every file of a run.

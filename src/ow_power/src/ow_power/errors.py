@@ -19,3 +19,7 @@ class RecorderError(OwPowerError):
 
 class AnalysisError(OwPowerError):
     """Bags cannot be read or hold nothing to analyse."""
+
+
+class BagReadError(OwPowerError):
+    """A bag file cannot be opened or read, or a message in it does not deserialise."""

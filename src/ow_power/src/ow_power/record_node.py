@@ -14,6 +14,7 @@ from typing import Any
 import rospy
 from std_msgs.msg import String
 
+from ow_msgs.srv import RecorderProgress, RecorderProgressRequest, RecorderProgressResponse
 from ow_power.bagwriter import SplitBagWriter, record_time_ns
 from ow_power.config import RecorderConfig
 from ow_power.errors import ConfigError, RecorderError
@@ -52,6 +53,10 @@ class RecorderNode:
         Publishes:
             ``~status`` (std_msgs/String, latched): JSON ``{"run", "active", "closed",
             "messages"}``, every second of wall time and whenever a file is closed.
+        Services:
+            ``~progress`` (ow_msgs/RecorderProgress): per topic written so far, the newest
+            record time (s) and the message count; a mission waits on it before stopping the
+            stack, so every message its last state caused is in the bags.
         Parameters (private, read once; see :class:`~ow_power.config.RecorderConfig`):
             ``~output_dir`` (str, default ``$ROS_HOME/bags``), ``~prefix`` (str, default ``ow``),
             ``~topics`` (list of str), ``~split_duration_s`` (float, s, default 60, 0 = off),
@@ -67,6 +72,7 @@ class RecorderNode:
         """
         self._status = rospy.Publisher("~status", String, queue_size=1, latch=True)
         self._messages = 0
+        self._progress: dict[str, tuple[int, int]] = {}  # topic -> (newest ns, messages)
         self._bags = SplitBagWriter(
             directory,
             prefix=config.prefix,
@@ -85,6 +91,7 @@ class RecorderNode:
             )
             for topic in config.topics
         ]
+        self._progress_service = rospy.Service("~progress", RecorderProgress, self._on_progress)
 
     @property
     def run_name(self) -> str:
@@ -94,13 +101,14 @@ class RecorderNode:
     def _on_message(self, msg: Any, topic: str) -> None:
         header = msg._connection_header
         msgdef = header["message_definition"]
+        stamp_ns = record_time_ns(msgdef, msg._buff, rospy.get_rostime().to_nsec())
         try:
             written = self._bags.write(
                 topic,
                 header["type"],
                 header["md5sum"],
                 msgdef,
-                record_time_ns(msgdef, msg._buff, rospy.get_rostime().to_nsec()),
+                stamp_ns,
                 msg._buff,
                 latching=header.get("latching", "0") == "1",
                 callerid=header.get("callerid", ""),
@@ -110,6 +118,16 @@ class RecorderNode:
             return
         if written:
             self._messages += 1
+            newest, count = self._progress.get(topic, (stamp_ns, 0))
+            self._progress[topic] = (max(newest, stamp_ns), count + 1)  # one thread per topic
+
+    def _on_progress(self, request: RecorderProgressRequest) -> RecorderProgressResponse:
+        progress = sorted(dict(self._progress).items())
+        return RecorderProgressResponse(
+            topics=[topic for topic, _ in progress],
+            latest_s=[newest * 1e-9 for _, (newest, _) in progress],
+            messages=[count for _, (_, count) in progress],
+        )
 
     def _on_closed(self, path: Path) -> None:
         rospy.loginfo(f"record: closed {path}")
@@ -132,6 +150,7 @@ class RecorderNode:
         Raises:
             RecorderError: the open file cannot be closed (it stays as ``.bag.active``).
         """
+        self._progress_service.shutdown()
         for subscriber in self._subscribers:
             subscriber.unregister()
         return self._bags.close()

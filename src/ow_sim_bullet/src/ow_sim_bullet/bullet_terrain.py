@@ -130,11 +130,13 @@ class BulletTerrain:
         return refreshed
 
     def remove(self) -> None:
-        """Delete the terrain bodies from the simulation."""
+        """Delete the terrain bodies from the simulation.
+
+        Their heightfield shapes stay in the client: pybullet (3.2.x) keeps a shape marked used
+        once a body was made with it and refuses to remove it (a warning per shape, ~3 kB each).
+        """
         for body in self.body_ids:
             pb.removeBody(body, physicsClientId=self._client)
-        for shape in self._shapes.values():
-            pb.removeCollisionShape(shape, physicsClientId=self._client)
         self.body_ids.clear()
         self._shapes.clear()
         self._bodies.clear()

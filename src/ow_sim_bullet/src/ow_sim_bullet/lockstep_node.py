@@ -63,6 +63,6 @@ class LockstepServer:
         return LockstepRegisterResponse(True, done, now, self.runner.lockstep.latency_s)
 
     def _on_status(self, _: Any) -> LockstepStatusResponse:
-        now, stamp, clients, blocked, holding = self.runner.lockstep_status()
+        now, stamp, clients, blocked, holding, terrain = self.runner.lockstep_status()
         waiting_for, reason = blocked or ("", "")
-        return LockstepStatusResponse(now, stamp, clients, waiting_for, reason, holding)
+        return LockstepStatusResponse(now, stamp, clients, waiting_for, reason, holding, terrain)

@@ -128,6 +128,8 @@ class SimOutputs:
         self._unflushed_steps = 0
         #: s of sim time, the stamp of the newest /joint_states queued (-1: none yet).
         self.joint_stamp = -1.0
+        #: s, the stamp of the newest /sim/terrain published (-1: none yet).
+        self.terrain_stamp = -1.0
         #: s of sim time of the last /clock message queued, and of the last one told on_clock.
         self._clock_time = self._told_time = -1.0
 
@@ -178,6 +180,20 @@ class SimOutputs:
                         publisher.publish(wire.genpy_payload, build, self.snapshots[tool])
         self.publish_terrain_if_due()
 
+    def publish_standing(self, terrain: bool = True) -> None:
+        """Where the simulation stops (paused, held by a lockstep client, after ``~step``):
+        queue /clock at the current sim time unless it went out at that time already, so every
+        node's clock reaches the time it stands at whatever ``clock_rate_hz`` is; with
+        ``terrain``, publish the terrain if it changed since its last publication, whatever
+        its wall-time throttle says, so that the terrain it stands on is recorded in every run
+        alike (not where it only waits for an acknowledgement: when is a matter of load)."""
+        now = self.sim.time
+        if self._clock_time != now:
+            self._clock_pub.publish(wire.clock, now)
+            self._clock_time = now
+        if terrain and self._terrain_throttle.changed(self.sim.terrain_version):
+            self.publish_terrain()
+
     def after_step(self) -> None:
         """Queue the outputs of the step just taken; write them every :data:`FLUSH_STEPS`."""
         self.publish()
@@ -203,4 +219,6 @@ class SimOutputs:
     def publish_terrain(self) -> None:
         """Publish the terrain now."""
         self._terrain_throttle.done(self.sim.terrain_version)
-        self._terrain_pub.publish(conversions.heightmap_msg(self.sim.heightmap, self.sim.time))
+        msg = conversions.heightmap_msg(self.sim.heightmap, self.sim.time)
+        self._terrain_pub.publish(msg)
+        self.terrain_stamp = msg.header.stamp.to_sec()  # as written: sim.time rounded to 1 ns

@@ -161,12 +161,20 @@ class SimRunner:
 
     def lockstep_status(
         self,
-    ) -> tuple[float, float, list[str], tuple[str, str] | None, list[str]]:
+    ) -> tuple[float, float, list[str], tuple[str, str] | None, list[str], float]:
         """(sim time s, stamp s of the newest joint state published, the registered clients,
-        :meth:`Lockstep.blocking` now, :meth:`Lockstep.holding` now)."""
+        :meth:`Lockstep.blocking` now, :meth:`Lockstep.holding` now, stamp s of the newest
+        terrain published)."""
         with self._wake:
             now, stamp, lockstep = self.sim.time, self.outputs.joint_stamp, self.lockstep
-            return now, stamp, list(lockstep.clients), lockstep.blocking(now), lockstep.holding(now)
+            return (
+                now,
+                stamp,
+                list(lockstep.clients),
+                lockstep.blocking(now),
+                lockstep.holding(now),
+                self.outputs.terrain_stamp,
+            )
 
     def call(self, command: Callable[[], T], timeout_s: float = CALL_TIMEOUT_S) -> T:
         """Run ``command`` on the simulation thread and return its result (or raise its error).
@@ -200,6 +208,7 @@ class SimRunner:
         """Stop stepping; returns whether it was paused already."""
         with self._wake:
             was, self._paused = self._paused, True
+            self._wake.notify()
         return was
 
     def resume(self) -> bool:
@@ -233,6 +242,7 @@ class SimRunner:
                 if not self._await_clients(stop_at_hold=True):
                     break  # a lockstep client holds the simulation here
                 self._advance()
+            self.outputs.publish_standing()
             self.outputs.flush()
             return self.sim.time
 
@@ -265,6 +275,9 @@ class SimRunner:
         sim, outputs, pacer = self.sim, self.outputs, self._pacer
         pacer.restart(sim.time)
         while not self._is_shutdown():
+            if self._paused and self._started:  # it stands: what it stands at goes out first
+                outputs.publish_standing()
+                outputs.flush()
             with self._wake:
                 while not self._shutdown and not self._queue and self._paused:
                     self._wake.wait(timeout=_POLL_S)
@@ -277,6 +290,7 @@ class SimRunner:
             for command in commands:
                 command()
             if paused:
+                outputs.publish_standing()
                 outputs.flush()
                 pacer.restart(sim.time)
                 continue
@@ -307,18 +321,25 @@ class SimRunner:
         the clients decide on it. A client silent for ``lockstep_timeout_s`` is dropped."""
         now = self.sim.time
         with self._wake:
+            if return_on_command and self._paused:
+                return False  # not one step after a pause
             blocked = self.lockstep.blocking(now)
         if blocked is None:
             return True
+        self.outputs.publish_standing(terrain=blocked[1] == "hold")
         self.outputs.flush()
         with self._wake:
             while not self._is_shutdown() and not self._shutdown:
+                if return_on_command and self._paused:
+                    return False  # paused while held: a client leaving then must not step it
                 blocked = self.lockstep.blocking(now)
                 if blocked is None:
                     return True
+                if blocked[1] == "hold":  # e.g. after an acknowledgement: the clock is out, the
+                    self.outputs.publish_standing()  # terrain's publisher queues (no flush)
                 if stop_at_hold and blocked[1] == "hold":
                     return False
-                if return_on_command and (self._queue or self._paused):
+                if return_on_command and self._queue:
                     return False
                 for name in self.lockstep.silent(now, time.monotonic(), self.lockstep_timeout_s):
                     self.lockstep.unregister(name)

@@ -88,6 +88,10 @@ class Throttle:
         """``version`` was published now."""
         self._version, self._wall = version, self._clock()
 
+    def changed(self, version: int) -> bool:
+        """Whether ``version`` is not the one published last (whatever the period)."""
+        return version != self._version
+
     def due(self, version: int) -> bool:
         """Whether ``version`` should be published now."""
         if version == self._version:

@@ -57,8 +57,18 @@ class VizNode:
             ``~ground_point`` (visualization_msgs/Marker, SPHERE, frame base_link, m).
     """
 
-    def __init__(self, config: VizConfig, urdf: str) -> None:
-        """Publish the description and the world frame; subscribe to what is drawn."""
+    def __init__(
+        self, config: VizConfig, urdf: str, namespace: str = "~", joint_queue_size: int = 1
+    ) -> None:
+        """Publish the description and the world frame; subscribe to what is drawn.
+
+        Args:
+            namespace: of the markers (``~``: the node's; ``/viz/`` when it is one component
+                of another node, :mod:`ow_mission.monitors_node`).
+            joint_queue_size: of ``/joint_states`` (only the newest is needed; rospy keeps one
+                queue per topic and process, so a component beside one that takes every joint
+                state passes ``EVERY_MESSAGE``).
+        """
         self.config = config
         self.model = LanderModel()
         self._q_rest = np.zeros(self.model.nq)
@@ -72,10 +82,10 @@ class VizNode:
                 config.world_frame, BASE_FRAME, config.base_link_in_world, rospy.Time.now()
             )
         )
-        self._terrain = rospy.Publisher("~terrain", Marker, queue_size=1, latch=True)
-        self._path = rospy.Publisher("~tool_path", Marker, queue_size=1, latch=True)
-        self._ground = rospy.Publisher("~ground_point", Marker, queue_size=1, latch=True)
-        rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=1)
+        self._terrain = rospy.Publisher(f"{namespace}terrain", Marker, queue_size=1, latch=True)
+        self._path = rospy.Publisher(f"{namespace}tool_path", Marker, queue_size=1, latch=True)
+        self._ground = rospy.Publisher(f"{namespace}ground_point", Marker, queue_size=1, latch=True)
+        rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=joint_queue_size)
         rospy.Subscriber("/sim/terrain", HeightMap, self._on_terrain, queue_size=1)
         rospy.Subscriber(
             "/sim/joint_trajectory", JointTrajectory, self._on_trajectory, queue_size=10

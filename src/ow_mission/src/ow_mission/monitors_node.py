@@ -1,0 +1,106 @@
+"""``rosrun ow_mission monitors``: the stack's monitors as components of one node (rospy wiring
+only): the power node, the battery, the OceanWATERS telemetry, the fault detector and the viz
+node, each the class its own node runs, with the same topics and parameters.
+
+Each is a small loop over the same streams. As separate processes, each received and
+deserialised every joint state again, and each paid the start-up of a Python process with rospy
+and numpy; together they take each stream once (rospy keeps one connection per topic and
+process). The mission runs them so (docs/performance.md); ``rosrun ow_power power`` and the
+others still run each alone.
+
+ROS API: the union of the components' (see each class), under this node's name:
+    Parameters (private, read once): ``~power``, ``~battery``, ``~telemetry``, ``~viz``: each
+        component's parameters, as its own node's private namespace (``node_config``).
+    Publishes: the viz markers as ``/viz/terrain``, ``/viz/tool_path``, ``/viz/ground_point``
+        (where the viz node's ``~`` puts them).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Mapping
+from typing import Any
+
+import rospy
+
+from ow_faults.detector_node import DetectorNode
+from ow_lander import errors as lander_errors
+from ow_lander.conversions import EVERY_MESSAGE
+from ow_lander.description import URDF_PATH
+from ow_lander.telemetry import TelemetryConfig
+from ow_lander.telemetry_node import TelemetryNode
+from ow_mission.errors import ConfigError
+from ow_power import errors as power_errors
+from ow_power.battery_node import BatteryNode
+from ow_power.config import BatteryConfig, PowerConfig
+from ow_power.power_node import PowerNode
+from ow_viz import errors as viz_errors
+from ow_viz.config import VizConfig
+from ow_viz.viz_node import VizNode
+
+#: The components with parameters (private namespaces of this node).
+CONFIGURED = ("power", "battery", "telemetry", "viz")
+#: Topics a component takes every message of: rospy keeps one receive queue per topic in a
+#: process, and the last ``queue_size`` given wins; checked once all are made.
+EVERY_MESSAGE_TOPICS = ("/joint_states", "/power")
+
+ConfigErrors = (
+    ConfigError,
+    lander_errors.ConfigError,
+    power_errors.ConfigError,
+    power_errors.PowerError,
+    viz_errors.ConfigError,
+    viz_errors.SceneError,
+)
+
+
+class Monitors:
+    """The components, made in an order that leaves every shared topic unbounded: the viz
+    (whose ``/joint_states`` queue is made unbounded too), the telemetry (a bounded queue of
+    1000), the detector, the battery, then the power node (``/joint_states``: every message).
+
+    Args:
+        params: component name -> its parameters (missing: the defaults).
+
+    Raises:
+        ConfigError: an unknown component, or (its package's class) a component's wrong
+            parameters.
+    """
+
+    def __init__(self, params: Mapping[str, Mapping[str, Any]]) -> None:
+        unknown = sorted(set(params) - set(CONFIGURED))
+        if unknown:
+            msg = f"monitors: unknown components {unknown}; known: {list(CONFIGURED)}"
+            raise ConfigError(msg)
+        viz = VizConfig.from_dict(params.get("viz", {}))
+        telemetry = TelemetryConfig.from_dict(params.get("telemetry", {}))
+        battery = BatteryConfig.from_dict(params.get("battery", {}))
+        power = PowerConfig.from_dict(params.get("power", {}))
+        self.viz = VizNode(viz, URDF_PATH.read_text(), "/viz/", EVERY_MESSAGE)
+        self.telemetry = TelemetryNode(telemetry)
+        self.detector = DetectorNode()
+        self.battery = BatteryNode(battery)
+        self.power = PowerNode(power)
+        manager = rospy.impl.registration.get_topic_manager()
+        for topic in EVERY_MESSAGE_TOPICS:
+            impl = manager.get_subscriber_impl(topic)
+            if impl is not None and impl.queue_size is not None:
+                msg = f"monitors: {topic} is received through a queue of {impl.queue_size}"
+                raise RuntimeError(msg)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the monitors until shutdown; 1 on a configuration error."""
+    rospy.init_node("monitors", argv=argv)
+    try:
+        Monitors(rospy.get_param("~", {}))
+    except ConfigErrors as exc:
+        rospy.logfatal(f"monitors: {exc}")
+        return 1
+    rospy.loginfo(f"monitors: {', '.join(CONFIGURED)} and the fault detector running")
+    rospy.spin()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,99 @@
+"""``rosrun ow_mission monitors``: the power node, the battery, the telemetry, the fault
+detector and the viz node as components of one node, on a real master with the real simulation
+and fault server (the mission's stack runs them so)."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+import rospy
+from dynamic_reconfigure.client import Client
+from sensor_msgs.msg import JointState
+from visualization_msgs.msg import Marker
+
+from ow_mission.stack import HarnessError
+from ow_mission.testing import subscribe
+from ow_msgs.msg import FaultChangeApplied, Power
+from owl_msgs.msg import ArmJointPositions
+
+P0_W = 37.0
+
+
+class Stamps:
+    """The stamps (s) of every message of a topic, and the messages."""
+
+    def __init__(self, topic: str, msg_type: type) -> None:
+        self.messages: list = []
+        self.sub = subscribe(topic, msg_type, self.messages.append)
+
+    def stamps(self) -> list[float]:
+        return [m.header.stamp.to_sec() for m in list(self.messages)]
+
+
+def _wait(condition, what: str, timeout_s: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            pytest.fail(f"timed out waiting for {what}")
+        time.sleep(0.02)
+
+
+@pytest.fixture(scope="module")
+def stack(ros_stack):
+    ros_stack.start_node("ow_faults", "faults", wait_for_services=["/faults/set_parameters"])
+    ros_stack.start_node("ow_sim_bullet", "sim", wait_for_topics=["/joint_states"])
+    ros_stack.start_node(
+        "ow_mission",
+        "monitors",
+        params={"power": {"auxiliary_power_w": P0_W}, "telemetry": {"rate_hz": 0.0}},
+        wait_for_topics=["/power", "/arm_joint_positions", "/system_faults_status"],
+    )
+    ros_stack.client = Client("/faults", timeout=30)
+    return ros_stack
+
+
+def test_every_joint_state_gives_a_power_and_a_telemetry_message(stack):
+    joints = Stamps("/joint_states", JointState)
+    power = Stamps("/power", Power)
+    telemetry = Stamps("/arm_joint_positions", ArmJointPositions)
+    _wait(lambda: len(joints.stamps()) > 100, "100 joint states")
+    window = joints.stamps()[10:100]  # all three subscribed and connected by then
+    _wait(
+        lambda: set(window) <= set(power.stamps()) and set(window) <= set(telemetry.stamps()),
+        "the power and telemetry of those joint states",
+    )
+    assert power.messages[-1].auxiliary_power == P0_W  # the component's own parameters
+
+
+def test_the_viz_component_draws_under_the_viz_namespace(stack):
+    marker = rospy.wait_for_message("/viz/terrain", Marker, timeout=20)
+    assert marker.type == Marker.TRIANGLE_LIST and marker.points
+    assert rospy.get_param("/robot_description").startswith("<?xml")
+
+
+def test_a_fault_change_is_acknowledged_once_by_the_node_after_every_component(stack):
+    """The battery and the detector both follow /faults; the node says it has applied a change
+    once, after both (a mission waits for each node that acknowledges)."""
+    applied = Stamps("/faults/applied", FaultChangeApplied)
+    stack.client.update_configuration({"high_power_draw": 50.0, "activate_high_power_draw": True})
+    try:
+        _wait(lambda: any(m.node == "/monitors" for m in applied.messages), "an acknowledgement")
+        _wait(lambda: any(m.node == "/sim" for m in applied.messages), "the simulation's")
+        time.sleep(1.0)  # a second acknowledgement of the change would be here by now
+        mine = [m.version for m in applied.messages if m.node == "/monitors"]
+        assert len(mine) == len(set(mine)) == 1
+    finally:
+        stack.client.update_configuration({"activate_high_power_draw": False})
+
+
+def test_a_wrong_parameter_stops_the_node_naming_it(ros_stack):
+    with pytest.raises(HarnessError, match="motor_efficiency"):
+        ros_stack.start_node(
+            "ow_mission",
+            "monitors",
+            name="monitors_bad",
+            params={"power": {"motor_efficiency": 2.0}},
+            wait_for_topics=["/never"],
+            timeout_s=30.0,
+        )
