@@ -21,7 +21,13 @@ from std_srvs.srv import Trigger
 
 import owl_msgs.msg as owl
 from ow_lander.actions import quaternion_from_rotation
-from ow_lander.description import ARM_JOINTS, DEFAULT_GROUND_Z, SCOOP_TIP_FRAME, UNSTOWED
+from ow_lander.description import (
+    ARM_JOINTS,
+    DEFAULT_GROUND_Z,
+    SCOOP_TIP_FRAME,
+    STAMP_SLACK_S,
+    UNSTOWED,
+)
 from ow_lander.model import LanderModel
 from ow_mission.testing import action_client, set_terrain, subscribe, wait_connected
 from ow_msgs.msg import GroundDetectorSignal
@@ -43,8 +49,9 @@ class JointLog:
         self.samples.append((msg.header.stamp.to_sec(), np.array([values[j] for j in ARM_JOINTS])))
 
     def latest(self) -> np.ndarray:
-        """The newest sample once the log has caught up with the clock (callbacks may lag)."""
-        now = rospy.get_rostime().to_sec()
+        """The newest sample once the log has caught up with the clock and with the end of the
+        last goal (this process's callbacks, its clock's among them, may lag the server)."""
+        now = max(rospy.get_rostime().to_sec(), GOAL_ENDS[-1])
         deadline = time.monotonic() + 10
         while self.samples[-1][0] < now and time.monotonic() < deadline:
             time.sleep(0.005)
@@ -61,7 +68,8 @@ def forget_clients() -> None:
     """Drop the clients and feedback recorders of another module's servers (their subscriptions
     end with that module's stack)."""
     client.cache_clear()
-    feedback_stamps.cache_clear()
+    action_stamps.cache_clear()
+    GOAL_ENDS[:] = [0.0]
 
 
 @pytest.fixture(scope="module")
@@ -98,20 +106,25 @@ def connected_client(name: str) -> actionlib.SimpleActionClient:
 
 
 @functools.cache
-def feedback_stamps(name: str) -> list[float]:
-    """The sim-time stamps (s) of every feedback message of action ``name`` from now on (its
-    /feedback topic, the header the server stamps on publishing)."""
+def action_stamps(name: str, topic: str) -> list[float]:
+    """The sim-time stamps (s) of every message on ``/<name>/<topic>`` of action ``name`` from
+    now on (the header the server stamps on publishing): ``feedback`` (the joint state each
+    one describes), ``result`` (when the server ended each goal)."""
     stamps: list[float] = []
     wait_connected(
         subscribe(
-            f"/{name}/feedback",
-            getattr(owl, f"{name}ActionFeedback"),
+            f"/{name}/{topic}",
+            getattr(owl, f"{name}Action{topic.capitalize()}"),
             lambda m: stamps.append(m.header.stamp.to_sec()),
         ),
         timeout_s=30,
     )
     return stamps
 
+
+#: s (sim), when the server ended the module's goals (the last: where :meth:`JointLog.latest`
+#: must have caught up to).
+GOAL_ENDS: list[float] = [0.0]
 
 #: Hz of simulation time, the feedback rate the actions must keep (issue: 10 Hz or more).
 MIN_FEEDBACK_HZ = 10.0
@@ -123,10 +136,15 @@ def run(name: str, goal, feedback=None, timeout: float = 300.0):
     motion when that lasted a second or more of simulation time (header stamps of
     /<name>/feedback)."""
     c = client(name)
-    stamps = feedback_stamps(name)
-    first = len(stamps)
+    stamps, ends = action_stamps(name, "feedback"), action_stamps(name, "result")
+    first, first_end = len(stamps), len(ends)
     c.send_goal(goal, feedback_cb=feedback)
     assert c.wait_for_end(timeout), f"{name} did not end"
+    deadline = time.monotonic() + 10  # wall: the result's copy for action_stamps
+    while len(ends) == first_end and time.monotonic() < deadline:
+        time.sleep(0.005)
+    assert len(ends) > first_end, f"{name}: the result reached the client but not action_stamps"
+    GOAL_ENDS.append(ends[-1])
     state = c.get_state()
     # Actions whose feedback has fields (OceanWATERS' ArmUnstow, the Task* but TaskGrind... have
     # none, and no feedback is published for them).
@@ -384,6 +402,9 @@ def test_a_clock_the_user_stopped_stays_stopped_while_a_goal_is_delivered(stack,
         while not receipts and time.monotonic() < deadline:
             time.sleep(0.01)
         assert receipts, "no trajectory delivered"
+        # This process's clock (its own connection) may still lag the paused simulation's.
+        while rospy.get_rostime() < receipts[-1].stamp and time.monotonic() < deadline:
+            time.sleep(0.01)
         stopped_at = rospy.get_rostime()
         time.sleep(0.5)  # wall: the clock would have run on had the arm services resumed it
         assert rospy.get_rostime() == stopped_at == receipts[-1].stamp
@@ -394,6 +415,29 @@ def test_a_clock_the_user_stopped_stays_stopped_while_a_goal_is_delivered(stack,
     assert c.wait_for_end(120)
     assert c.get_state() == GoalStatus.SUCCEEDED, c.get_goal_status_text()
     assert np.allclose(joints.latest(), target, atol=0.05)
+
+
+def test_an_execution_is_watched_from_the_start_of_its_trajectory(stack, joints):
+    """The arm services watch an execution (feedback, guard, decisions) from the first joint
+    state of its trajectory: they set their monitor up while the clock they paused for the
+    delivery is still stopped. Set up after the resume, it missed the states that went by
+    before this thread ran again: under load on CI, a whole guarded descent ("no surface
+    found" on flat ground). This test fails on such a miss; a prompt thread makes none, so
+    without load it passes without the fix too."""
+    receipts: list[Header] = []
+    sub = wait_connected(subscribe("/sim/trajectory_received", Header, receipts.append))
+    stamps = action_stamps("ArmMoveJoints", "feedback")
+    first = len(stamps)
+    goal, _ = _long_move(joints)
+    try:
+        state, _, text = run("ArmMoveJoints", goal)
+    finally:
+        sub.unregister()
+    assert state == GoalStatus.SUCCEEDED, text
+    start = receipts[-1].stamp.to_sec()
+    # The first feedback comes with the first joint state the monitor has: the paused one, or
+    # the next (100 Hz).
+    assert start - STAMP_SLACK_S <= stamps[first] <= start + 0.01 + STAMP_SLACK_S
 
 
 def test_goals_rejected_at_once_end_for_the_client_every_time(stack):

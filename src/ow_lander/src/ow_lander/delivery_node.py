@@ -4,6 +4,7 @@ the arm_services node)."""
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import rospy
 from trajectory_msgs.msg import JointTrajectory
@@ -33,8 +34,9 @@ class TrajectoryDelivery:
         self.sim_clock = SimClock(config.service_wait_s)
         self.publisher = rospy.Publisher("/sim/joint_trajectory", JointTrajectory, queue_size=10)
 
-    def send(self, trajectory: Trajectory) -> float:
-        """Hand ``trajectory`` to the simulation; return when (sim time, s) it starts.
+    def send(self, trajectory: Trajectory, started: Callable[[float], None]) -> float:
+        """Hand ``trajectory`` to the simulation; call ``started`` with when (sim time, s) it
+        starts, before the clock runs on, and return that time.
 
         A simulation running many times faster than real time could pass the start time before
         the message arrives, so its clock is paused while the message is delivered (when it
@@ -42,6 +44,10 @@ class TrajectoryDelivery:
         simulation that sends receipts starts the trajectory when it queues it, clock stopped,
         and its receipt says when: the start is then exact whatever the machine's load.
         Otherwise the start is ``start_delay_s`` after the newest joint state.
+
+        ``started`` is called while the clock is still paused: whatever watches the execution
+        is in place before the simulation runs it, however late this thread runs after the
+        resume (one that woke up late once let a whole guarded descent go by unwatched).
 
         Raises:
             TrajectoryDeliveryError: the simulation does not subscribe to the trajectory topic,
@@ -63,13 +69,15 @@ class TrajectoryDelivery:
             if paused and self.sim_clock.sends_receipts():
                 token = self.sim_clock.new_token()
                 self.publisher.publish(conv.trajectory_msg(trajectory, 0.0, token))
-                return float(self.sim_clock.wait_received(token).to_sec())
-            if paused:
-                self.observer.wait_quiet(cfg.delivery_wait_s)
-            t_start = self.observer.newest_stamp() + cfg.start_delay_s
-            self.publisher.publish(conv.trajectory_msg(trajectory, t_start))
-            if paused:
-                time.sleep(cfg.delivery_wait_s)  # no receipts: time for the delivery
+                t_start = float(self.sim_clock.wait_received(token).to_sec())
+            else:
+                if paused:
+                    self.observer.wait_quiet(cfg.delivery_wait_s)
+                t_start = self.observer.newest_stamp() + cfg.start_delay_s
+                self.publisher.publish(conv.trajectory_msg(trajectory, t_start))
+                if paused:
+                    time.sleep(cfg.delivery_wait_s)  # no receipts: time for the delivery
+            started(t_start)
             return t_start
         finally:
             if paused_here:

@@ -4,20 +4,17 @@ node): trajectories go to the simulation, its observations to an
 
 from __future__ import annotations
 
-import math
 import threading
 import time
 
 import rospy
-from std_msgs.msg import Float64
 
 from ow_lander import conversions as conv
 from ow_lander.arm_observer_node import ArmObserver, SampleCallback
 from ow_lander.config import ExecutionConfig
+from ow_lander.decision_node import DecisionOutlet
 from ow_lander.delivery_node import TrajectoryDelivery
-from ow_lander.description import ARM_JOINTS
 from ow_lander.execution import (
-    Decision,
     ExecutionMonitor,
     ExecutionResult,
     start_error,
@@ -38,9 +35,7 @@ class ArmExecutor(ArmObserver):
     Subscribes and publishes as :class:`~ow_lander.arm_observer_node.ArmObserver`, and
     Publishes: trajectories through :class:`~ow_lander.delivery_node.TrajectoryDelivery`
         (interface ``trajectory``); the set-points (interface ``position_controllers``) and
-        holds of its decisions as lockstep acknowledgements (``/sim/lockstep``, see
-        :mod:`ow_lander.lockstep_node`) once in the simulation's lockstep, else on
-        ``/<joint>_position_controller/command`` (std_msgs/Float64, rad) for the six arm joints;
+        holds of its decisions through :class:`~ow_lander.decision_node.DecisionOutlet`;
         ``/guarded_move_result`` (ow_msgs/GuardedMoveResult, latched) once per guarded descent.
     Calls: ``/sim/pause``, ``/sim/resume`` (std_srvs/Trigger) around a delivery and a stop;
         ``/sim/lockstep_register`` once, when ``lockstep`` is set.
@@ -63,9 +58,7 @@ class ArmExecutor(ArmObserver):
         self.result_pub = rospy.Publisher(
             "/guarded_move_result", GuardedMoveResult, queue_size=10, latch=True
         )
-        self.command_pubs = {
-            j: rospy.Publisher(conv.command_topic(j), Float64, queue_size=10) for j in ARM_JOINTS
-        }
+        self.outlet = DecisionOutlet(config)
         self.faults = FaultWatch(self._on_fault_status)
         self._flags = LockFlags() if config.lockstep else None
         self._stop_requested = False  # by a user or the telemetry: braking goes out at once
@@ -118,26 +111,32 @@ class ArmExecutor(ArmObserver):
         if refused is not None:
             return refused
         trajectory = with_settle_pause(trajectory, cfg)
+
+        def watch(t_start: float) -> None:  # every joint state from now on goes to the monitor
+            with self._state_changed:
+                monitor = ExecutionMonitor(
+                    trajectory, t_start, cfg, self.model, self._joints, wrench_limits
+                )
+                self._monitor, self._on_sample = monitor, on_sample
+                self._pending.clear()
+                self._stopped.clear()
+                self._stop_requested = False
+                # A fault that arrived while the trajectory was being delivered.
+                fault = self.faults.now().stop_reason(monitor.watches_force)
+                if fault is not None:
+                    monitor.request_stop(self._joint_stamp, fault)
+
         if cfg.interface == "trajectory":
-            try:
-                t_start = self.delivery.send(trajectory)
+            try:  # watched from its start: the monitor is set before the clock runs on
+                self.delivery.send(trajectory, watch)
             except TrajectoryDeliveryError as error:
                 return ExecutionResult(False, str(error))
         else:
             with self._state_changed:
                 t_start = self._joint_stamp + cfg.start_delay_s
-        with self._state_changed:
-            monitor = ExecutionMonitor(
-                trajectory, t_start, cfg, self.model, self._joints, wrench_limits
-            )
-            self._monitor, self._on_sample = monitor, on_sample
-            self._pending.clear()
-            self._stopped.clear()
-            self._stop_requested = False
-            # A fault that arrived while the trajectory was being delivered.
-            fault = self.faults.now().stop_reason(monitor.watches_force)
-            if fault is not None:
-                monitor.request_stop(self._joint_stamp, fault)
+            watch(t_start)
+        monitor = self._monitor
+        assert monitor is not None  # set by watch
         if self._lockstep is not None:  # the monitor sees every joint state from now on
             self._lockstep.release()
         try:
@@ -185,7 +184,7 @@ class ArmExecutor(ArmObserver):
                         monitor.request_stop(stamp, fault)
             with self._state_changed:
                 decision = monitor.decide(stamp, joints) if arrived else monitor.stalled()
-            self._apply(decision, stamp, now=self._stop_requested)
+            self.outlet.apply(decision, stamp, self._lockstep, now=self._stop_requested)
             if decision.result is not None:
                 return decision.result
         return ExecutionResult(False, "shutting down")
@@ -220,31 +219,3 @@ class ArmExecutor(ArmObserver):
         if monitor is not None:
             self._stopped.wait(timeout=self.config.joint_state_timeout_s)
         return monitor is not None
-
-    def _apply(self, decision: Decision, stamp: float, now: bool = False) -> None:
-        """Carry out the decision on the joint state of ``stamp`` (s, sim): in the lockstep, as
-        its acknowledgement (set-points then hold, from ``stamp`` + latency; with
-        ``lockstep_hold`` the simulation stops ``lockstep_settle_s`` later when the execution
-        ends), else published at once. ``now``: published at once anyway (a stop's braking:
-        the clock is paused while the stop is requested, so it brakes from the request, not a
-        latency later; a stop is not part of a deterministic run)."""
-        lockstep = self._lockstep
-        if lockstep is None or now:
-            self._command(decision)
-            decision = Decision(result=decision.result)
-            if lockstep is None:
-                return
-        hold = decision.hold or {}
-        if decision.in_place:  # where each joint is when it takes effect, not a latency ago
-            hold = dict.fromkeys(hold, math.nan)
-        commands = {**(decision.setpoints or {}), **hold}
-        if decision.result is not None and self.config.lockstep_hold:
-            lockstep.hold(stamp, commands, self.config.lockstep_settle_s)
-        else:
-            lockstep.ack(stamp, commands)
-
-    def _command(self, decision: Decision) -> None:
-        """Publish a decision's set-points, then its hold."""
-        for commands in (decision.setpoints, decision.hold):
-            for joint, value in (commands or {}).items():
-                self.command_pubs[joint].publish(Float64(value))
