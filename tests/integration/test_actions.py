@@ -401,7 +401,7 @@ def test_a_clock_the_user_stopped_stays_stopped_while_a_goal_is_delivered(stack,
         deadline = time.monotonic() + 60
         while not receipts and time.monotonic() < deadline:
             time.sleep(0.01)
-        assert receipts, "no trajectory delivered"
+        assert receipts, f"no trajectory delivered: {c.get_state()} {c.get_goal_status_text()}"
         # This process's clock (its own connection) may still lag the paused simulation's.
         while rospy.get_rostime() < receipts[-1].stamp and time.monotonic() < deadline:
             time.sleep(0.01)

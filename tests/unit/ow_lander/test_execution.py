@@ -239,9 +239,35 @@ def test_no_contact_reports_the_distance_searched(model, planned):
     searched = float(np.linalg.norm(ends[1] - ends[0]))
     assert searched > 0.3
     assert not result.success and not result.ground_found and result.reports_ground
-    assert result.message == f"no ground within {searched:.2f} m of the start of the descent"
+    first, last = (T_START + t for t in trajectory.steady_span("guarded"))
+    assert result.message == (
+        f"no ground within {searched:.2f} m of the start of the descent "
+        f"(no velocity reading between t={first:.2f} and t={last:.2f} s)"
+    )
     assert np.array_equal(result.ground_position, np.zeros(3))
     assert result.contact_time is None
+
+
+def test_a_guarded_action_without_contact_says_what_its_guard_read(model, planned):
+    trajectory = planned[1]
+    first, last = (T_START + t for t in trajectory.steady_span("guarded"))
+    start = _joints(trajectory, trajectory.positions[0])
+    limits = (10.0, 5.0)
+    monitor = ExecutionMonitor(trajectory, T_START, CONFIG.execution, model, start, limits)
+
+    def wrist(monitor, stamp, joints):  # the force creeps up 0.5 N/s: never 10 N
+        monitor.wrist_force(stamp, np.array([0.0, 0.0, 0.5 * stamp]), np.array([0.3, 0, 0]))
+
+    until = T_START + trajectory.duration + 1.0
+    _, decision = _stream(monitor, trajectory.sample, until, feed=wrist)
+    stamps = [T_START - 0.2 + k / RATE_HZ for k in range(round((until - T_START) * RATE_HZ) + 11)]
+    read = [t for t in stamps if first <= t <= last]
+    rise = 0.5 * (read[-1] - read[0])
+    assert decision.result.message.endswith(
+        f"the descent ({len(read)} wrench readings from t={read[0]:.2f} to t={read[-1]:.2f} s: "
+        f"no force/torque threshold exceeded (largest changes {rise:.1f} N of 10.0 N, 0.00 N m "
+        "of 5.0 N m))"
+    )
 
 
 def test_detectors_watch_only_the_steady_descent(model, planned):

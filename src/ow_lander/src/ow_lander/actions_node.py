@@ -85,15 +85,9 @@ class ArmActions:
         self._cancelled = threading.Event()
         self.servers = []
         for name in ARM_ACTIONS:
-            action = getattr(owl, f"{name}Action")
+            action, on_goal = getattr(owl, f"{name}Action"), partial(self._on_goal, name)
             self.servers.append(
-                actionlib.ActionServer(
-                    name,
-                    action,
-                    partial(self._on_goal, name),
-                    self._on_cancel,
-                    auto_start=False,
-                )
+                actionlib.ActionServer(name, action, on_goal, self._on_cancel, auto_start=False)
             )
         self.servers.append(
             actionlib.ActionServer("ArmStop", owl.ArmStopAction, self._on_stop, auto_start=False)
@@ -162,6 +156,8 @@ class ArmActions:
         self.node.executor.settle()  # in a mission: the end stamped where the arm is held
         announce, result, message = end
         success = announce == handle.set_succeeded
+        ended = {handle.set_succeeded: "succeeded", handle.set_canceled: "cancelled"}
+        rospy.loginfo(f"arm_services: {name} goal {ended.get(announce, 'aborted')}: {message}")
         self.node.marker(
             name, Operation.END, parameters, SimpleNamespace(success=success, message=message)
         )

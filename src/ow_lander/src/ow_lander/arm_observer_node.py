@@ -169,14 +169,15 @@ class ArmObserver:
         their own, and under load one may lag another by seconds. A stop request ends the wait
         (the clock is paused for it)."""
         stream = monitor.guard_stream(stamp)
-        if stream is not None:
-            self._state_changed.wait_for(
-                lambda: (
-                    self._stream_stamps[stream] >= stamp - STAMP_SLACK_S
-                    or monitor.stop_time is not None
-                ),
-                self.joint_state_timeout_s,
-            )
+        if stream is not None and not self._state_changed.wait_for(
+            lambda: (
+                self._stream_stamps[stream] >= stamp - STAMP_SLACK_S
+                or monitor.stop_time is not None
+            ),
+            self.joint_state_timeout_s,
+        ):
+            late = f"t={self._stream_stamps[stream]:.3f} s, not t={stamp:.3f} s"
+            rospy.logwarn(f"arm services: deciding on {stream} readings up to {late} only")
 
     def wait_quiet(self, quiet_s: float, limit_s: float = 1.0) -> None:
         """Wait until no new /joint_states has arrived for ``quiet_s`` (wall; ``limit_s`` at

@@ -177,6 +177,9 @@ class GuardWatch:
         self.tip_at_contact: FloatArray | None = None
         self.contact_time: float | None = None
         self.joints: deque[tuple[float, dict[str, float]]] = deque(maxlen=JOINT_HISTORY)
+        #: how many readings it watched, and the stamps (s, sim) of the first and the last
+        self.readings = 0
+        self.read_span = (math.nan, math.nan)
 
     @property
     def contact(self) -> FloatArray | None:
@@ -186,6 +189,24 @@ class GuardWatch:
     def watching(self, kind: str, t: float) -> bool:
         """True when the ``kind`` detector still looks for contact at time ``t`` (s, sim)."""
         return self.kind == kind and self.contact_time is None and self.start <= t <= self.end
+
+    def watched(self, t: float) -> None:
+        """Count a reading of time ``t`` (s, sim) it watched."""
+        self.read_span = (t if self.readings == 0 else self.read_span[0], t)
+        self.readings += 1
+
+    def searched(self) -> str:
+        """What it read of the descent and the largest change seen (a search without contact)."""
+        if self.readings == 0:
+            return f"no {self.kind} reading between t={self.start:.2f} and t={self.end:.2f} s"
+        first, last = self.read_span
+        span = f"{self.readings} {self.kind} readings from t={first:.2f} to t={last:.2f} s"
+        if self.wrench_detector is not None:
+            return f"{span}: {self.wrench_detector.describe()}"
+        if self.kind == "force":
+            peak = self.force_detector.peak_rise
+            return f"{span}: largest force rise {peak:.1f} N of {self.force_detector.threshold} N"
+        return span
 
     def joints_at_contact(self) -> dict[str, float] | None:
         """Joint positions of the last joint state at or before the contact, or None."""
@@ -302,6 +323,7 @@ class ExecutionMonitor:
         guard = self.guard
         if guard is None or not guard.watching("velocity", t):
             return False
+        guard.watched(t)
         detector = guard.detector
         fired = detector.update(t, position)
         if detector.velocity is not None and detector.average is not None:
@@ -325,6 +347,7 @@ class ExecutionMonitor:
             return False
         wrench = guard.wrench_detector
         if wrench is not None and guard.watching("wrench", t):
+            guard.watched(t)
             fired = wrench.update(force, np.zeros(3) if torque is None else torque)
             for kind, value, limit in (
                 ("force", wrench.force, wrench.force_threshold),
@@ -334,6 +357,7 @@ class ExecutionMonitor:
                     DetectorSignal(t, kind, value, value, limit, fired and wrench.breach == kind)
                 )
         elif guard.watching("force", t):
+            guard.watched(t)
             detector = guard.force_detector
             fired = detector.update(force)
             self.signals.append(
@@ -518,9 +542,10 @@ class ExecutionMonitor:
             )
         ]
         searched = float(np.linalg.norm(ends[1] - ends[0]))
+        read = "" if guard is None else f" ({guard.searched()})"
         return ExecutionResult(
             False,
-            f"no ground within {searched:.2f} m of the start of the descent",
+            f"no ground within {searched:.2f} m of the start of the descent{read}",
             result.duration,
             reports_ground=True,
         )

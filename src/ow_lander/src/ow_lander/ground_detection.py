@@ -102,6 +102,7 @@ class ForceDetector:
         self.fired = False
         self.contact: FloatArray | None = None
         self.rise = 0.0
+        self.peak_rise = 0.0
 
     def update(self, force: FloatArray, position: FloatArray | None = None) -> bool:
         """Add a force reading (3,) N, with the scoop tip ``position`` (3,) m at that time when
@@ -117,6 +118,7 @@ class ForceDetector:
             self.tare = force.copy()
             return False
         self.rise = float(np.linalg.norm(force - self.tare))
+        self.peak_rise = max(self.peak_rise, self.rise)
         if self.rise >= self.threshold:
             self.fired = True
             if position is not None:
@@ -137,6 +139,7 @@ class WrenchDetector:
         force: N, magnitude of the force change at the latest reading (0 before any).
         torque: N m, magnitude of the torque change at the latest reading.
         breach: "force" or "torque" once a threshold was exceeded, else None.
+        peak_force, peak_torque: N, N m, the largest changes read so far.
     """
 
     def __init__(self, force_threshold: float, torque_threshold: float) -> None:
@@ -146,6 +149,8 @@ class WrenchDetector:
         self.force = 0.0
         self.torque = 0.0
         self.breach: str | None = None
+        self.peak_force = 0.0
+        self.peak_torque = 0.0
 
     def update(self, force: FloatArray, torque: FloatArray) -> bool:
         """Add a reading, ``force`` (3,) N and ``torque`` (3,) N m; True once a threshold has
@@ -159,6 +164,8 @@ class WrenchDetector:
             return False
         self.force = float(np.linalg.norm(force - self.tare[0]))
         self.torque = float(np.linalg.norm(torque - self.tare[1]))
+        self.peak_force = max(self.peak_force, self.force)
+        self.peak_torque = max(self.peak_torque, self.torque)
         if self.force > self.force_threshold:
             self.breach = "force"
         elif self.torque > self.torque_threshold:
@@ -174,4 +181,7 @@ class WrenchDetector:
                 f"torque {self.torque:.2f} N m exceeded torque_threshold "
                 f"{self.torque_threshold} N m"
             )
-        return "no force/torque threshold exceeded"
+        return (
+            f"no force/torque threshold exceeded (largest changes {self.peak_force:.1f} N of "
+            f"{self.force_threshold} N, {self.peak_torque:.2f} N m of {self.torque_threshold} N m)"
+        )
