@@ -101,13 +101,14 @@ class ArmActions:
         goal = conv.goal_to_dict(handle.get_goal())
         try:
             validate_goal(name, goal)
+            refused = self.node.executor.faults.refusal(name)
         except OwLanderError as error:
-            handle.set_rejected(text=f"{name}: {error}")
-            return
-        refused = self.node.executor.faults.refusal(name)
+            refused = str(error)
         owner = self.node.claim(f"{name} goal") if refused is None else None
         if refused is not None or owner is not None:
-            handle.set_rejected(text=f"{name}: {refused}" if refused else BUSY.format(owner=owner))
+            text = f"{name}: {refused}" if refused else BUSY.format(owner=owner)
+            rospy.loginfo(f"arm_services: {name} goal rejected: {text}")
+            handle.set_rejected(text=text)
             return
         with self._lock:
             self._running = handle.get_goal_id().id

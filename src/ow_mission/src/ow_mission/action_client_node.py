@@ -14,9 +14,8 @@ from actionlib_msgs.msg import GoalStatus
 import owl_msgs.msg
 from ow_lander.conversions import fill_fields
 from ow_mission.action_steps import StepResponse, action_goal, step_response
+from ow_mission.connections_node import wait_sending
 
-#: s of wall time between checks that a new client's subscriptions are connected.
-_POLL_S = 0.01
 #: s of wall time at most between checks for shutdown while a goal's end is awaited.
 _WAKE_S = 0.1
 
@@ -74,9 +73,10 @@ class ActionClient(actionlib.SimpleActionClient):
 
 def connect(name: str, action: type, timeout_s: float) -> ActionClient:
     """An :class:`ActionClient` of action ``name`` once its server and the client's result and
-    feedback subscriptions are connected: ``wait_for_server`` only checks the goal and cancel
-    publishers and one status message, and a result the server sends before the result
-    subscription is connected is lost (the goal never ends for the client).
+    feedback subscriptions are connected, on the server's side too
+    (:func:`~ow_mission.connections_node.wait_sending`): ``wait_for_server`` only checks the
+    goal and cancel publishers and one status message, and a result the server sends before it
+    writes to the result subscription is lost (the goal never ends for the client).
 
     Raises:
         TimeoutError: no server, or no connection, within ``timeout_s`` s of wall time.
@@ -87,11 +87,9 @@ def connect(name: str, action: type, timeout_s: float) -> ActionClient:
         msg = f"no {name} action server in {timeout_s} s"
         raise TimeoutError(msg)
     for sub in (client.action_client.result_sub, client.action_client.feedback_sub):
-        while sub.get_num_connections() == 0:
-            if time.monotonic() > deadline:
-                msg = f"{name}: {sub.name} not connected in {timeout_s} s"
-                raise TimeoutError(msg)
-            time.sleep(_POLL_S)
+        if not wait_sending(sub, deadline - time.monotonic()):
+            msg = f"{name}: {sub.name} not connected in {timeout_s} s"
+            raise TimeoutError(msg)
     return client
 
 

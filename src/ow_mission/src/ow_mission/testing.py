@@ -231,11 +231,20 @@ def action_client(name: str, action: type, timeout_s: float = 30.0) -> Any:
 
 def wait_connected(endpoint: Any, timeout_s: float = 10.0) -> Any:
     """Wait (wall time) until a rospy Publisher or Subscriber has a connection and return it:
-    a message published, or one published to a subscriber, before then is lost.
+    a message published, or one published to a subscriber, before then is lost. A subscriber's
+    publishers must write to it on their side too
+    (:func:`~ow_mission.connections_node.publishers_send_to`).
 
     Raises:
         AssertionError: no connection within ``timeout_s``.
     """
+    import rospy
+
+    from ow_mission.connections_node import wait_sending
+
+    if isinstance(endpoint, rospy.Subscriber):
+        assert wait_sending(endpoint, timeout_s), f"nothing sends {endpoint.name} in {timeout_s} s"
+        return endpoint
     deadline = time.monotonic() + timeout_s
     while endpoint.get_num_connections() == 0:
         assert time.monotonic() < deadline, f"nothing connected to {endpoint.name} in {timeout_s} s"
