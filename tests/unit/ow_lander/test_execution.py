@@ -270,6 +270,33 @@ def test_a_guarded_action_without_contact_says_what_its_guard_read(model, planne
     )
 
 
+def test_a_contact_read_seconds_after_the_joint_states_holds_at_its_own_stamp(model, planned):
+    """The wrist readings may lag the joint states by seconds (their own connection): the joint
+    state of the contact stamp is still there when its reading comes, however many came
+    since (a fixed history of 500 once lost it: a breach reported as no ground found)."""
+    trajectory = planned[1]
+    first, last = (T_START + t for t in trajectory.steady_span("guarded"))
+    start = _joints(trajectory, trajectory.positions[0])
+    monitor = ExecutionMonitor(trajectory, T_START, CONFIG.execution, model, start, (10.0, 5.0))
+    stamps = [T_START + k / 100.0 for k in range(round((last - T_START) * 100.0) + 1)]
+    t_contact = next(stamp for stamp in stamps[::2] if stamp >= first + 1.0)
+    for stamp in stamps:  # every joint state first, at 100 Hz: 20 s and more past the contact
+        monitor.record_joint_state(stamp, _joints(trajectory, trajectory.sample(stamp - T_START)))
+    assert stamps[-1] - t_contact > 10.0
+    for stamp in stamps[::2]:  # then the wrist readings (50 Hz), pressed from the contact on
+        pressed = 20.0 if stamp >= t_contact else 0.0
+        if monitor.wrist_force(stamp, np.array([0.0, 0.0, pressed]), np.zeros(3)):
+            break
+    assert monitor.contact_time == pytest.approx(t_contact)
+    at_contact = _joints(trajectory, trajectory.sample(monitor.contact_time - T_START))
+    decision = monitor.decide(stamps[-1], _joints(trajectory, trajectory.sample(last - T_START)))
+    result = decision.result
+    assert result.success and result.ground_found, result.message
+    assert decision.hold == pytest.approx(at_contact)
+    tip = _tip(model, {**start, **at_contact})
+    assert np.allclose(result.ground_position, tip)
+
+
 def test_detectors_watch_only_the_steady_descent(model, planned):
     trajectory = planned[1]
     first, last = trajectory.steady_span("guarded")

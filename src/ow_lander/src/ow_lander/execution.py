@@ -37,8 +37,9 @@ from ow_lander.trajectory import Trajectory
 
 FloatArray = npt.NDArray[np.float64]
 
-#: Joint states of a guarded descent kept to look up the one at the contact stamp (10 s at 50 Hz).
-JOINT_HISTORY = 500
+#: s (sim) of joint states kept before the one decided on, to look up the one at a stop's
+#: stamp (those after it are kept however many: they are still to be decided on).
+HISTORY_S = 5.0
 #: rad/s, a stopping arm is at rest when no joint moves faster than this.
 REST_SPEED = 0.005
 #: rad/s, a joint slower than this at a stop request needs no braking.
@@ -176,7 +177,7 @@ class GuardWatch:
         self.wrench_detector = None if wrench_limits is None else WrenchDetector(*wrench_limits)
         self.tip_at_contact: FloatArray | None = None
         self.contact_time: float | None = None
-        self.joints: deque[tuple[float, dict[str, float]]] = deque(maxlen=JOINT_HISTORY)
+        self.joints: deque[tuple[float, dict[str, float]]] = deque()
         #: how many readings it watched, and the stamps (s, sim) of the first and the last
         self.readings = 0
         self.read_span = (math.nan, math.nan)
@@ -189,6 +190,20 @@ class GuardWatch:
     def watching(self, kind: str, t: float) -> bool:
         """True when the ``kind`` detector still looks for contact at time ``t`` (s, sim)."""
         return self.kind == kind and self.contact_time is None and self.start <= t <= self.end
+
+    def keep(self, stamp: float, joints: dict[str, float]) -> None:
+        """Keep the joint state of ``stamp`` (s, sim) for :meth:`joints_at_contact` while a
+        contact can still be at or after it. A contact comes at a reading watched from now on,
+        so at or after the start and the last reading watched: the states before that are
+        dropped but the last one. Their readings may lag the joint states by seconds (each
+        stream on its own connection): a fixed number of the newest states once lost the one
+        at the contact, and a breach was reported as no ground found."""
+        if self.contact_time is not None and stamp > self.contact_time:
+            return
+        self.joints.append((stamp, joints))
+        floor = self.start if self.readings == 0 else max(self.start, self.read_span[1])
+        while len(self.joints) >= 2 and self.joints[1][0] <= floor:
+            self.joints.popleft()
 
     def watched(self, t: float) -> None:
         """Count a reading of time ``t`` (s, sim) it watched."""
@@ -280,7 +295,7 @@ class ExecutionMonitor:
         self.model = model
         self.limit = trajectory.duration * config.timeout_factor + config.settle_timeout_s
         self._latest = dict(joints)
-        self._history: deque[tuple[float, dict[str, float]]] = deque(maxlen=JOINT_HISTORY)
+        self._history: deque[tuple[float, dict[str, float]]] = deque()
         self._next_command = t_start
         self.signals: list[DetectorSignal] = []
         self.stop_time: float | None = None
@@ -310,9 +325,8 @@ class ExecutionMonitor:
         lookups."""
         self._latest.update(joints)
         self._history.append((stamp, dict(self._latest)))
-        guard = self.guard
-        if guard is not None and (guard.contact_time is None or stamp <= guard.contact_time):
-            guard.joints.append((stamp, dict(self._latest)))
+        if self.guard is not None:
+            self.guard.keep(stamp, dict(self._latest))
 
     def wants_tip(self, t: float) -> bool:
         """True when a scoop-tip sample at time ``t`` (s, sim) is wanted (velocity detector)."""
@@ -408,6 +422,9 @@ class ExecutionMonitor:
         names = self.trajectory.joints
         here = np.array([joints[j] for j in names])
         t = stamp - self.t_start
+        history = self._history
+        while len(history) >= 2 and history[1][0] <= stamp - HISTORY_S:
+            history.popleft()
         contact = self.contact_time
         if contact is not None and contact <= stamp + STAMP_SLACK_S:
             return self._contact(here, t)
