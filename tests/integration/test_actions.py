@@ -420,10 +420,9 @@ def test_a_clock_the_user_stopped_stays_stopped_while_a_goal_is_delivered(stack,
 def test_an_execution_is_watched_from_the_start_of_its_trajectory(stack, joints):
     """The arm services watch an execution (feedback, guard, decisions) from the first joint
     state of its trajectory: they set their monitor up while the clock they paused for the
-    delivery is still stopped. Set up after the resume, it missed the states that went by
-    before this thread ran again: under load on CI, a whole guarded descent ("no surface
-    found" on flat ground). This test fails on such a miss; a prompt thread makes none, so
-    without load it passes without the fix too."""
+    delivery is still stopped. Set up after the resume, it would miss the states that go by
+    before their thread runs again (under load, part of a guarded descent). This test fails on
+    such a miss; a prompt thread makes none, so without load it passes without the fix too."""
     receipts: list[Header] = []
     sub = wait_connected(subscribe("/sim/trajectory_received", Header, receipts.append))
     stamps = action_stamps("ArmMoveJoints", "feedback")

@@ -47,7 +47,7 @@ class TrajectoryDelivery:
 
         ``started`` is called while the clock is still paused: whatever watches the execution
         is in place before the simulation runs it, however late this thread runs after the
-        resume (one that woke up late once let a whole guarded descent go by unwatched).
+        resume (one set up after it misses the states that go by until its thread runs).
 
         Raises:
             TrajectoryDeliveryError: the simulation does not subscribe to the trajectory topic,
