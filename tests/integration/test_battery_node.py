@@ -14,7 +14,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Header
 
-from ow_mission.testing import subscribe
+from ow_mission.testing import subscribe, wait_connected
 from ow_msgs.msg import Power
 from ow_power.config import BatteryConfig
 from owl_msgs.msg import BatteryRemainingUsefulLife, BatteryStateOfCharge, BatteryTemperature
@@ -59,10 +59,8 @@ def battery(ros_stack):
     clock = rospy.Publisher("/clock", Clock, queue_size=10)
     power = rospy.Publisher("/power", Power, queue_size=1000)
     _wait(lambda: power.get_num_connections() >= 1, "the battery node on /power")
-    _wait(
-        lambda: all(c.subscriber.get_num_connections() for c in collectors.values()),
-        "our subscriptions to the battery topics",
-    )
+    for collector in collectors.values():  # the battery node writes to each
+        wait_connected(collector.subscriber)
     for k in range(SECONDS * 100 + 1):
         stamp = rospy.Time.from_sec(START_S + k * PERIOD_S)
         clock.publish(Clock(clock=stamp))

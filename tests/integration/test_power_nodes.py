@@ -19,7 +19,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
 
-from ow_mission.testing import subscribe
+from ow_mission.testing import subscribe, wait_connected
 from ow_msgs.msg import Operation, Power
 from ow_msgs.srv import RecorderProgress
 
@@ -132,7 +132,7 @@ def test_power_node_sums_the_configured_joints_by_name(ros_stack):
     feeder = Feeder("/subset/joint_states")
     _wait_connected(ros_stack, "/power_subset", ["/subset/joint_states"])
     _wait_publishing(feeder.joint_states, ["/power_subset"])
-    _wait(lambda: sub.get_num_connections() > 0, "the /subset/power connection")
+    wait_connected(sub)  # the power node writes to it
     for k in range(101):  # 1 s; the joint order changes every message
         names = ["j_a", "j_c", "j_b"] if k % 2 else ["j_c", "j_b", "j_a"]
         # j_a: 20 N m x 0.1 rad/s = 2 W, j_b: -5 N m x 0.2 rad/s = -1 W, j_c (not summed) 90 W.

@@ -9,7 +9,7 @@ import rospy
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from ow_mission.testing import subscribe
+from ow_mission.testing import subscribe, wait_connected
 from ow_msgs.srv import StepSimulation
 
 #: rad, an arm pose in front of the lander, reached from the stowed pose by a trajectory.
@@ -32,10 +32,9 @@ def run_once(ros_stack) -> np.ndarray:
     commands = rospy.Publisher("/sim/joint_trajectory", JointTrajectory, queue_size=1)
     try:
         deadline = time.monotonic() + 10.0
-        while (commands.get_num_connections() == 0 or sub.get_num_connections() == 0) and (
-            time.monotonic() < deadline
-        ):
+        while commands.get_num_connections() == 0 and time.monotonic() < deadline:
             time.sleep(0.02)
+        wait_connected(sub)  # the simulation writes to it: none of its states is lost
         msg = JointTrajectory(joint_names=list(TARGET))
         msg.points = [
             JointTrajectoryPoint(
