@@ -17,7 +17,9 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
+from ow_dem_bridge.api import Wrench
 from ow_lander.description import URDF_PATH
+from ow_msgs.msg import JointStatesFlag, ToolState
 from ow_sim_bullet import wire
 from ow_sim_bullet.conversions import (
     TrajectoryRequest,
@@ -28,6 +30,7 @@ from ow_sim_bullet.conversions import (
     transform_msg,
 )
 from ow_sim_bullet.errors import CommandError
+from ow_sim_bullet.tool_tracking import ToolSnapshot
 
 
 def quaternion_matrix(q: tuple[float, float, float, float]) -> np.ndarray:
@@ -161,12 +164,70 @@ def test_stamped_and_clock_wires_are_genpys_serialisation(time_s):
     assert wire.clock(1, time_s) == genpy_bytes(Clock(clock=stamp(time_s)))
 
 
-def test_genpy_payload_sets_the_header_seq_as_rospy_does():
+@pytest.mark.parametrize("time_s", TIMES)
+def test_joint_flags_wire_is_genpys_serialisation_whatever_the_flags(time_s):
+    serialise = wire.JointFlagsWire()
+    names = ("j_dist_pitch", "j_hand_yaw", "j_ü")
+    for flags in [(False, False, False), (True, False, True), (False, False, False)]:
+        msg = JointStatesFlag(name=list(names), flags=list(flags))
+        msg.header.stamp, msg.header.frame_id = stamp(time_s), "base_link"
+        payload = serialise(11, time_s, names, flags)
+        assert payload == genpy_bytes(msg, 11)
+        assert JointStatesFlag().deserialize(payload).flags == list(flags)
+    with pytest.raises(ValueError, match="3 joint names but 2 flags"):
+        serialise(1, 0.0, names, (True, False))
+
+
+def tool_snapshot(time_s: float, model: bool) -> ToolSnapshot:
+    rng = np.random.default_rng(3)
+    pose = np.eye(4)
+    pose[:3, :3] = pin.rpy.rpyToMatrix(*rng.uniform(-3.0, 3.0, 3))
+    pose[:3, 3] = rng.normal(size=3)
+    return ToolSnapshot(
+        tool="scoop",
+        link="l_scoop",
+        time=time_s,
+        X_base_link=pose,
+        linear_velocity=rng.normal(size=3),
+        angular_velocity=rng.normal(size=3),
+        tip=rng.normal(size=3),
+        terrain_z=-0.155,
+        depth=0.0123,
+        progress=0.456,
+        material=7,
+        force=rng.normal(size=3),
+        torque=rng.normal(size=3),
+        model_wrench=Wrench(rng.normal(size=3), rng.normal(size=3)) if model else None,
+        model_depth=0.0101 if model else 0.0,
+    )
+
+
+@pytest.mark.parametrize("time_s", TIMES)
+@pytest.mark.parametrize("model", [False, True])
+def test_tool_wires_are_genpys_serialisation_of_the_snapshot(time_s, model):
+    snapshot = tool_snapshot(time_s, model)
+    state = ToolState()
+    state.header.stamp, state.header.frame_id = stamp(time_s), "base_link"
+    state.tool, state.link = "scoop", "l_scoop"
+    p, o = state.pose.position, state.pose.orientation
+    p.x, p.y, p.z = snapshot.X_base_link[:3, 3].tolist()
+    q = pin.Quaternion(snapshot.X_base_link[:3, :3])
+    o.x, o.y, o.z, o.w = q.x, q.y, q.z, q.w
+    lin, ang = state.twist.linear, state.twist.angular
+    lin.x, lin.y, lin.z = snapshot.linear_velocity.tolist()
+    ang.x, ang.y, ang.z = snapshot.angular_velocity.tolist()
+    state.depth, state.progress, state.material = 0.0123, 0.456, 7
+    tool = wire.ToolWire("scoop", "l_scoop")
+    assert tool.state(4, snapshot) == genpy_bytes(state, 4)
+    state.depth = snapshot.model_depth
+    assert tool.model_state(5, snapshot) == genpy_bytes(state, 5)
     wrench = WrenchStamped()
-    wrench.header.frame_id = "l_scoop"
-    payload = wire.genpy_payload(7, lambda: wrench)
-    assert payload == genpy_bytes(wrench, 7)
-    assert wire.genpy_payload(7, Clock) == genpy_bytes(Clock())  # no header
+    wrench.header.stamp, wrench.header.frame_id = stamp(time_s), "l_scoop"
+    if model:
+        f, t = wrench.wrench.force, wrench.wrench.torque
+        f.x, f.y, f.z = snapshot.model_wrench.force.tolist()
+        t.x, t.y, t.z = snapshot.model_wrench.torque.tolist()
+    assert tool.model_wrench(6, snapshot) == genpy_bytes(wrench, 6)
 
 
 class FakeConnection:

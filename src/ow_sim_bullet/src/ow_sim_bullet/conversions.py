@@ -16,14 +16,12 @@ from typing import Any
 import genpy
 import numpy as np
 import pinocchio as pin
-from geometry_msgs.msg import TransformStamped, WrenchStamped
+from geometry_msgs.msg import TransformStamped
 
 from ow_lander.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
-from ow_msgs.msg import JointStatesFlag
-from ow_msgs.msg import ToolState as ToolStateMsg
 from ow_sim_bullet.errors import CommandError
-from ow_sim_bullet.tool_tracking import FloatArray, ToolSnapshot
+from ow_sim_bullet.tool_tracking import FloatArray
 from ow_sim_bullet.trajectory import JointTrajectory
 
 Quaternion = tuple[float, float, float, float]  # x, y, z, w
@@ -151,55 +149,6 @@ def transform_msg(frame: JointFrame, angle: float, time_s: float) -> TransformSt
     t.x, t.y, t.z = frame.translation
     r = msg.transform.rotation
     r.x, r.y, r.z, r.w = frame.rotation_at(angle)
-    return msg
-
-
-def joint_flags_msg(time: float, names: Sequence[str], flags: Sequence[bool]) -> JointStatesFlag:
-    """ow_msgs/JointStatesFlag: which joints are locked at sim time ``time`` (s)."""
-    msg = JointStatesFlag(name=list(names), flags=list(flags))
-    msg.header.stamp = stamp(time)
-    msg.header.frame_id = "base_link"
-    return msg
-
-
-def tool_state_msg(snapshot: ToolSnapshot) -> ToolStateMsg:
-    """ow_msgs/ToolState of a tool (pose and twist of its link in base_link)."""
-    msg = ToolStateMsg()
-    msg.header.stamp = stamp(snapshot.time)
-    msg.header.frame_id = "base_link"
-    msg.tool = snapshot.tool
-    msg.link = snapshot.link
-    position = snapshot.X_base_link[:3, 3]
-    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in position)
-    o = msg.pose.orientation
-    o.x, o.y, o.z, o.w = quaternion_from_matrix(snapshot.X_base_link[:3, :3])
-    lin, ang = msg.twist.linear, msg.twist.angular
-    lin.x, lin.y, lin.z = (float(v) for v in snapshot.linear_velocity)
-    ang.x, ang.y, ang.z = (float(v) for v in snapshot.angular_velocity)
-    msg.depth = snapshot.depth
-    msg.progress = snapshot.progress
-    msg.material = snapshot.material
-    return msg
-
-
-def model_state_msg(snapshot: ToolSnapshot) -> ToolStateMsg:
-    """ow_msgs/ToolState of the state the terrain-force model was given in a tool snapshot's step
-    (its depth, not the depth measured after the step; depth 0 when no model ran)."""
-    msg = tool_state_msg(snapshot)
-    msg.depth = snapshot.model_depth
-    return msg
-
-
-def model_wrench_msg(snapshot: ToolSnapshot) -> WrenchStamped:
-    """geometry_msgs/WrenchStamped of the terrain-force model's wrench in a tool snapshot (tool
-    link frame, about the link COM; zero when no model ran)."""
-    msg = WrenchStamped()
-    msg.header.stamp = stamp(snapshot.time)
-    msg.header.frame_id = snapshot.link
-    if snapshot.model_wrench is not None:
-        f, t = msg.wrench.force, msg.wrench.torque
-        f.x, f.y, f.z = (float(v) for v in snapshot.model_wrench.force)
-        t.x, t.y, t.z = (float(v) for v in snapshot.model_wrench.torque)
     return msg
 
 

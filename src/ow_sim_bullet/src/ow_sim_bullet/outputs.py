@@ -101,18 +101,19 @@ class SimOutputs:
         self._wrench_pubs = {tool: publishers[f"~{tool}_wrench"] for tool in TOOLS}
         self._tip_ground_pub = publishers["~scoop_tip_ground"]
         self._wrist_pub = publishers["/arm_end_effector_force_torque"]
+        self._tool_wires = {tool: wire.ToolWire(tool, link) for tool, (link, _) in TOOLS.items()}
         self._tool_pubs = [
-            (kind, build, {tool: publishers[f"~{tool}_{kind}"] for tool in TOOLS})
-            for kind, build in (
-                ("state", conversions.tool_state_msg),
-                ("model_state", conversions.model_state_msg),
-                ("model_wrench", conversions.model_wrench_msg),
+            (
+                {tool: publishers[f"~{tool}_{kind}"] for tool in TOOLS},
+                {tool: getattr(self._tool_wires[tool], kind) for tool in TOOLS},
             )
+            for kind in ("state", "model_state", "model_wrench")
         ]
         self._terrain_pub = terrain
         self._on_clock = on_clock
         moving = [f for f in frames if f.axis is not None]
         self._joint_state_wire = wire.JointStateWire(sim.names)
+        self._flags_wire = wire.JointFlagsWire()
         self._tf_wire = wire.TfWire(moving, [sim.names.index(f.joint) for f in moving])
         self._tool_wire = {tool: wire.StampedWire(link) for tool, (link, _) in TOOLS.items()}
         self._base_wire = wire.StampedWire("base_link")
@@ -151,9 +152,7 @@ class SimOutputs:
             self.joint_stamp = t
             self._damping_pub.publish(joint_state, t, position, velocity, sample.damping_effort)
             names, flags = sim.locks.flags()
-            self._flags_pub.publish(
-                wire.genpy_payload, conversions.joint_flags_msg, t, names, flags
-            )
+            self._flags_pub.publish(self._flags_wire, t, names, flags)
         if self._tf_tick.due(t) or force:
             self._tf_pub.publish(self._tf_wire, t, sample.position)
         if self._wrench_tick.due(t) or force:
@@ -174,10 +173,10 @@ class SimOutputs:
                 scoop.terrain_z,
             )
         if self._tool_tick.due(sample.time) or force:
-            for _, build, publishers in self._tool_pubs:
+            for publishers, serializers in self._tool_pubs:
                 for tool, publisher in publishers.items():
                     if tool in self.snapshots:
-                        publisher.publish(wire.genpy_payload, build, self.snapshots[tool])
+                        publisher.publish(serializers[tool], self.snapshots[tool])
         self.publish_terrain_if_due()
 
     def publish_standing(self, terrain: bool = True) -> None:

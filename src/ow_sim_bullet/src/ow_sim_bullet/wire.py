@@ -3,8 +3,8 @@
 Building a genpy message and serialising it costs 10-60 us in Python (a TFMessage of nine frames
 ~60 us); these serialisers write the same bytes from cached constant parts and ``struct``, in
 1-5 us. Each returns the payload of one message (without the 4-byte length prefix) for the
-header sequence number ``seq`` it is given; tests compare them byte for byte with genpy. The
-low-rate messages are genpy's (:func:`genpy_payload`).
+header sequence number ``seq`` it is given; tests compare them byte for byte with genpy. Only the
+terrain (``ow_msgs/HeightMap``, on change) is still a genpy message.
 
 No rospy here: :class:`BatchPublisher` writes to the connections of a rospy publisher that
 :mod:`ow_sim_bullet.sim_node` makes.
@@ -12,13 +12,12 @@ No rospy here: :class:`BatchPublisher` writes to the connections of a rospy publ
 
 from __future__ import annotations
 
-import io
 import struct
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from ow_sim_bullet.conversions import JointFrame, stamp_parts
-from ow_sim_bullet.tool_tracking import FloatArray
+from ow_sim_bullet.conversions import JointFrame, quaternion_from_matrix, stamp_parts
+from ow_sim_bullet.tool_tracking import FloatArray, ToolSnapshot
 
 _U32 = struct.Struct("<I")
 _HEADER = struct.Struct("<3I")  # seq, stamp secs, stamp nsecs
@@ -26,6 +25,8 @@ _STAMP = struct.Struct("<2I")
 _VECTOR3 = struct.Struct("<3d")
 _QUATERNION = struct.Struct("<4d")
 _WRENCH = struct.Struct("<6d")
+_TOOL_STATE = struct.Struct("<15dB")  # pose (3 + 4), twist (3 + 3), depth, progress; material
+_ZERO_WRENCH = _WRENCH.pack(*[0.0] * 6)
 
 
 def _string(text: str) -> bytes:
@@ -136,15 +137,79 @@ class StampedWire:
         return _HEADER.pack(seq, *stamp_parts(time_s)) + self._frame_id + _VECTOR3.pack(x, y, z)
 
 
-def genpy_payload(seq: int, build: Callable[..., Any], *args: Any) -> bytes:
-    """The payload of the genpy message ``build(*args)``, its header's seq set to ``seq`` (as
-    ``rospy.msg.serialize_message`` does)."""
-    msg = build(*args)
-    if getattr(msg.__class__, "_has_header", False):
-        msg.header.seq = seq
-    buffer = io.BytesIO()
-    msg.serialize(buffer)
-    return buffer.getvalue()
+class JointFlagsWire:
+    """ow_msgs/JointStatesFlag of the locked joints, frame_id base_link. The flags
+    change only when a fault locks or releases a joint, so the names and flags are serialised
+    once per combination."""
+
+    def __init__(self) -> None:
+        self._frame_id = _string("base_link")
+        self._bodies: dict[tuple[tuple[str, ...], tuple[bool, ...]], bytes] = {}
+
+    def __call__(
+        self, seq: int, time_s: float, names: tuple[str, ...], flags: tuple[bool, ...]
+    ) -> bytes:
+        """The message at sim time ``time_s``: ``flags[i]`` true when joint ``names[i]`` is
+        locked (one entry each, as ``JointLocks.flags`` gives them)."""
+        body = self._bodies.get((names, flags))
+        if body is None:
+            if len(names) != len(flags):
+                msg = f"{len(names)} joint names but {len(flags)} flags"
+                raise ValueError(msg)
+            count = _U32.pack(len(names))
+            body = b"".join(
+                (count, *(_string(n) for n in names), count, bytes(bool(f) for f in flags))
+            )
+            self._bodies[(names, flags)] = body
+        return _HEADER.pack(seq, *stamp_parts(time_s)) + self._frame_id + body
+
+
+class ToolWire:
+    """A tool's ow_msgs/ToolState (frame_id base_link) and its terrain-force model's
+    geometry_msgs/WrenchStamped (frame_id the tool link) from its snapshots.
+
+    Args:
+        tool: "scoop" or "grinder".
+        link: the tool's link.
+    """
+
+    def __init__(self, tool: str, link: str) -> None:
+        self._state_head = _string("base_link") + _string(tool) + _string(link)
+        self._link = _string(link)
+
+    def state(self, seq: int, snapshot: ToolSnapshot, model: bool = False) -> bytes:
+        """The tool's state in ``snapshot``; with ``model``, the depth the terrain-force model
+        was given instead of the depth measured after the step."""
+        pose = snapshot.X_base_link
+        return b"".join(
+            (
+                _HEADER.pack(seq, *stamp_parts(snapshot.time)),
+                self._state_head,
+                _TOOL_STATE.pack(
+                    *pose[:3, 3].tolist(),
+                    *quaternion_from_matrix(pose[:3, :3]),
+                    *snapshot.linear_velocity.tolist(),
+                    *snapshot.angular_velocity.tolist(),
+                    snapshot.model_depth if model else snapshot.depth,
+                    snapshot.progress,
+                    snapshot.material,
+                ),
+            )
+        )
+
+    def model_state(self, seq: int, snapshot: ToolSnapshot) -> bytes:
+        """The state the terrain-force model was given in ``snapshot``'s step."""
+        return self.state(seq, snapshot, model=True)
+
+    def model_wrench(self, seq: int, snapshot: ToolSnapshot) -> bytes:
+        """The model's wrench in ``snapshot`` (link frame, about the COM; zero: no model ran)."""
+        wrench = snapshot.model_wrench
+        values = (
+            _ZERO_WRENCH
+            if wrench is None
+            else _WRENCH.pack(*(float(v) for v in wrench.force), *(float(v) for v in wrench.torque))
+        )
+        return _HEADER.pack(seq, *stamp_parts(snapshot.time)) + self._link + values
 
 
 class BatchPublisher:
