@@ -7,13 +7,14 @@ from __future__ import annotations
 import time
 
 import pytest
+import rosgraph
 import rospy
 from dynamic_reconfigure.client import Client
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import BatteryState, JointState
 from visualization_msgs.msg import Marker
 
 from ow_mission.stack import HarnessError
-from ow_mission.testing import subscribe
+from ow_mission.testing import subscribe, wait_connected
 from ow_msgs.msg import FaultChangeApplied, Power
 from owl_msgs.msg import ArmJointPositions
 
@@ -64,6 +65,27 @@ def test_every_joint_state_gives_a_power_and_a_telemetry_message(stack):
         "the power and telemetry of those joint states",
     )
     assert power.messages[-1].auxiliary_power == P0_W  # the component's own parameters
+
+
+def test_the_battery_takes_the_power_components_messages_without_a_connection(stack):
+    """/power reaches the battery in the node's own process: the node does not subscribe to
+    it, and the battery's load over each period is still that period's /power."""
+    _, subscribers, _ = rosgraph.Master("/test").getSystemState()
+    assert "/monitors" not in dict(subscribers).get("/power", [])
+    power = Stamps("/power", Power)
+    batteries = Stamps("/battery_state", BatteryState)
+    wait_connected(power.sub)
+    start_s = max(power.stamps(), default=0.0)
+    _wait(lambda: [t for t in batteries.stamps() if t > start_s + 2.0], "two battery periods")
+    last = next(m for m in batteries.messages if m.header.stamp.to_sec() > start_s + 2.0)
+    end_s = last.header.stamp.to_sec()
+    loads = [
+        m.electrical_power
+        for m in list(power.messages)
+        if end_s - 0.995 < m.header.stamp.to_sec() < end_s + 0.005  # stamps to the ns
+    ]
+    assert len(loads) == 100  # one second of joint states at 100 Hz
+    assert -last.current * last.voltage == pytest.approx(sum(loads) / len(loads), rel=0.01)
 
 
 def test_the_viz_component_draws_under_the_viz_namespace(stack):

@@ -5,8 +5,9 @@ node, each the class its own node runs, with the same topics and parameters.
 Each is a small loop over the same streams. As separate processes, each received and
 deserialised every joint state again, and each paid the start-up of a Python process with rospy
 and numpy; together they take each stream once (rospy keeps one connection per topic and
-process). The mission runs them so (docs/performance.md); ``rosrun ow_power power`` and the
-others still run each alone.
+process), and the battery takes the power component's ``/power`` messages as they are published,
+without a connection. The mission runs them so (docs/performance.md); ``rosrun ow_power power``
+and the others still run each alone.
 
 ROS API: the union of the components' (see each class), under this node's name:
     Parameters (private, read once): ``~power``, ``~battery``, ``~telemetry``, ``~viz``: each
@@ -42,7 +43,7 @@ from ow_viz.viz_node import VizNode
 CONFIGURED = ("power", "battery", "telemetry", "viz")
 #: Topics a component takes every message of: rospy keeps one receive queue per topic in a
 #: process, and the last ``queue_size`` given wins; checked once all are made.
-EVERY_MESSAGE_TOPICS = ("/joint_states", "/power")
+EVERY_MESSAGE_TOPICS = ("/joint_states",)
 
 ConfigErrors = (
     ConfigError,
@@ -79,8 +80,10 @@ class Monitors:
         self.viz = VizNode(viz, URDF_PATH.read_text(), "/viz/", EVERY_MESSAGE)
         self.telemetry = TelemetryNode(telemetry)
         self.detector = DetectorNode()
-        self.battery = BatteryNode(battery)
-        self.power = PowerNode(power)
+        # /power reaches the battery in this process: the topic's messages go out once, to
+        # the other nodes, and are not serialised back to the node that made them.
+        self.battery = BatteryNode(battery, subscribe=False)
+        self.power = PowerNode(power, listeners=[self.battery.on_power])
         manager = rospy.impl.registration.get_topic_manager()
         for topic in EVERY_MESSAGE_TOPICS:
             impl = manager.get_subscriber_impl(topic)

@@ -67,8 +67,13 @@ class BatteryNode:
             measurements), ``~noise_seed`` (int, default 0).
     """
 
-    def __init__(self, config: BatteryConfig) -> None:
+    def __init__(self, config: BatteryConfig, subscribe: bool = True) -> None:
         """Make the battery, advertise its topics and subscribe to ``power``.
+
+        Args:
+            config: the node's parameters.
+            subscribe: take ``power`` from the topic; False: the caller hands every message to
+                :meth:`on_power` (a power node in the same process, ``ow_mission monitors``).
 
         Raises:
             PowerError: the configured pack cannot start (initial voltage at end of discharge).
@@ -87,8 +92,10 @@ class BatteryNode:
                 ("battery_state", BatteryStateMsg),
             )
         ]
-        self._subscriber = rospy.Subscriber(
-            "power", Power, self._on_power, queue_size=EVERY_MESSAGE
+        self._subscriber = (
+            rospy.Subscriber("power", Power, self.on_power, queue_size=EVERY_MESSAGE)
+            if subscribe
+            else None
         )
         #: (s sim, faults) received and holding from a time no /power has passed yet
         self._pending: deque[tuple[float, FaultSet]] = deque()
@@ -113,7 +120,8 @@ class BatteryNode:
         for event in events:
             rospy.logwarn(f"battery: {event} at {self.battery.state.time_s:.1f} s")
 
-    def _on_power(self, msg: Power) -> None:
+    def on_power(self, msg: Power) -> None:
+        """Take one ``power`` message (in stamp order, each once)."""
         with self._lock:
             stamp = msg.header.stamp.to_sec()
             while self._pending and self._pending[0][0] < stamp:

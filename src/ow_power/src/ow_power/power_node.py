@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable, Sequence
 
 import rospy
 from sensor_msgs.msg import JointState
@@ -42,9 +43,19 @@ class PowerNode:
             ``~max_dt_s`` (float, s, default 1.0): longer stamp gaps are not integrated.
     """
 
-    def __init__(self, config: PowerConfig) -> None:
-        """Advertise ``power`` and subscribe to ``joint_states``."""
+    def __init__(
+        self, config: PowerConfig, listeners: Sequence[Callable[[Power], None]] = ()
+    ) -> None:
+        """Advertise ``power`` and subscribe to ``joint_states``.
+
+        Args:
+            config: the node's parameters.
+            listeners: called with every ``power`` message as it is published, in this
+                process: a component of the same node (the battery in ``ow_mission monitors``)
+                takes the stream without a connection of its own.
+        """
         self._integrator = PowerIntegrator(config)
+        self._listeners = tuple(listeners)
         self._publisher = rospy.Publisher("power", Power, queue_size=PUBLISH_QUEUE)
         self._subscriber = rospy.Subscriber(
             "joint_states", JointState, self._on_joint_states, queue_size=EVERY_MESSAGE
@@ -64,7 +75,10 @@ class PowerNode:
                 f"power: joint state at {stamp_s:.3f} s follows a gap longer than "
                 f"{self._integrator.config.max_dt_s} s or goes back in time; gap not integrated",
             )
-        self._publisher.publish(power_message(sample, msg.header))
+        power = power_message(sample, msg.header)
+        self._publisher.publish(power)
+        for listener in self._listeners:
+            listener(power)
 
 
 def main(argv: list[str] | None = None) -> int:
