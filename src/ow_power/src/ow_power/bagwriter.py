@@ -19,6 +19,7 @@ replays on its own with the robot, its static frames and the terrain.
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 import struct
@@ -43,8 +44,12 @@ _FIRST_FIELD = re.compile(r"^\s*([\w/]+)(\[\d*\])?\s+(\w+)\s*$")
 _STAMP = struct.Struct("<II")
 
 
+@functools.lru_cache(maxsize=256)
 def starts_with_header(msgdef: str) -> bool:
     """True when the message's first field is a ``std_msgs/Header`` (``Header header``).
+
+    Remembered per definition: the recorder asks for every message, and reading the definition
+    was a third of its time per message (a process sees a few dozen definitions).
 
     Args:
         msgdef: the full message definition, as in the connection header.
