@@ -108,6 +108,24 @@ def test_accelerations_are_the_finite_difference_of_velocities_between_stamps():
         assert np.allclose(accelerations[k], expected, rtol=1e-9)
 
 
+def test_an_observed_state_counts_for_the_next_accelerations_as_an_updated_one():
+    names = sorted(ALL_JOINTS)
+    zeros = [0.0] * len(names)
+    rng = np.random.default_rng(4)
+    states = [(10.0 + 0.01 * k, rng.normal(size=len(names)).tolist()) for k in range(6)]
+    every, sparse = TelemetryBuilder(), TelemetryBuilder()
+    for k, (stamp, v) in enumerate(states):
+        full = every.update(stamp, names, zeros, v, zeros)
+        if k % 3 == 2:
+            kept = sparse.update(stamp, names, zeros, v, zeros)
+            assert np.array_equal(kept.accelerations, full.accelerations)
+            assert np.array_equal(kept.scoop_position, full.scoop_position)
+        else:
+            assert sparse.observe(stamp, names, zeros, v, zeros) is None
+    with pytest.raises(TelemetryError, match="3 velocity values"):
+        sparse.observe(11.0, names, zeros, [1.0, 2.0, 3.0], zeros)
+
+
 @pytest.mark.parametrize("second_stamp", [10.0, 9.5])
 def test_a_stamp_that_does_not_increase_gives_zero_acceleration_and_restarts(second_stamp):
     builder = TelemetryBuilder()
@@ -217,6 +235,10 @@ def test_the_rate_gate_passes_the_first_stamp_of_each_period_only():
     assert [gate.passes(k * 0.01) for k in range(31)].count(True) == 4  # 0, 0.1, 0.2, 0.3
     every = RateGate(0.0)
     assert all(every.passes(t) for t in stamps)
+    # due() says what passes() would, without taking the stamp.
+    gate = RateGate(10.0)
+    dues = [(gate.due(t), gate.due(t), gate.passes(t)) for t in stamps]
+    assert [d for d, again, _ in dues] == [p for _, _, p in dues] == [a for _, a, _ in dues]
 
 
 def test_telemetry_config_defaults_and_refusals():

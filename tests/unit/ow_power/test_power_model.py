@@ -80,9 +80,12 @@ def test_batch_integration_follows_the_same_rule_as_the_stream():
     t = np.cumsum(rng.uniform(-0.2, 0.8, 200))
     p = rng.normal(0.0, 10.0, 200)
     integrator = PowerIntegrator(PowerConfig(auxiliary_power_w=0.0, max_dt_s=0.5))
+    dts = []
     for tk, pk in zip(t, p, strict=True):
-        streamed = integrator.update(tk, ["j"], [pk], [1.0]).mechanical_energy_j
-    assert streamed == pytest.approx(integrate_j(t, p, max_dt_s=0.5))
+        sample = integrator.update(tk, ["j"], [pk], [1.0])
+        dts.append(sample.dt_s)
+    assert sample.mechanical_energy_j == pytest.approx(integrate_j(t, p, max_dt_s=0.5))
+    assert dts == intervals_s(t, max_dt_s=0.5).tolist()  # the same doubles
     assert intervals_s([]).size == 0
 
 

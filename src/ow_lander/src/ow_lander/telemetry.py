@@ -80,16 +80,23 @@ class RateGate:
         self.rate_hz = rate_hz
         self._last = -math.inf
 
+    def due(self, stamp: float) -> bool:
+        """Whether :meth:`passes` would pass ``stamp`` (s), without taking it."""
+        return self.rate_hz == 0.0 or self._period(stamp) > self._last
+
     def passes(self, stamp: float) -> bool:
         """True for the first stamp (s) at or after each multiple of the period (a stamp a
         rounding error below a multiple counts as on it)."""
         if self.rate_hz == 0.0:
             return True
-        period = math.floor(stamp * self.rate_hz + 1e-6)
+        period = self._period(stamp)
         if period <= self._last:
             return False
         self._last = period
         return True
+
+    def _period(self, stamp: float) -> int:
+        return math.floor(stamp * self.rate_hz + 1e-6)
 
 
 class TelemetryError(OwLanderError):
@@ -191,6 +198,50 @@ class TelemetryBuilder:
             TelemetryError: a lander joint is missing, or an array's length differs from the
                 names' (the state is skipped; the previous one is kept for the difference).
         """
+        q_all, velocities, accelerations, torques = self._take(
+            stamp, names, position, velocity, effort
+        )
+        arm = self._arm
+        q = q_all[self._to_q]
+        pin.forwardKinematics(self._model, self._data, q)
+        X = pin.updateFramePlacement(self._model, self._data, self._scoop)
+        return Telemetry(
+            stamp,
+            q_all[arm],
+            velocities,
+            accelerations,
+            torques,
+            q_all[self._pan_tilt],
+            X.translation.copy(),
+            pin.Quaternion(X.rotation).coeffs().copy(),
+        )
+
+    def observe(
+        self,
+        stamp: float,
+        names: Sequence[str],
+        position: Sequence[float],
+        velocity: Sequence[float] = (),
+        effort: Sequence[float] = (),
+    ) -> None:
+        """Take a joint state no telemetry is wanted for: checked, and its velocities kept for
+        the next accelerations, as :meth:`update` does, without the kinematics.
+
+        Raises:
+            TelemetryError: as :meth:`update`.
+        """
+        self._take(stamp, names, position, velocity, effort)
+
+    def _take(
+        self,
+        stamp: float,
+        names: Sequence[str],
+        position: Sequence[float],
+        velocity: Sequence[float],
+        effort: Sequence[float],
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """Check a joint state and difference its velocities: (all positions, arm velocities,
+        arm accelerations, arm torques)."""
         if names != self._names and tuple(names) != self._names:
             self._index(names)
         n = len(names)
@@ -214,19 +265,7 @@ class TelemetryBuilder:
         torques = (
             np.asarray(effort, dtype=np.float64)[arm] if len(effort) else np.full(len(arm), np.nan)
         )
-        q = q_all[self._to_q]
-        pin.forwardKinematics(self._model, self._data, q)
-        X = pin.updateFramePlacement(self._model, self._data, self._scoop)
-        return Telemetry(
-            stamp,
-            q_all[arm],
-            velocities,
-            accelerations,
-            torques,
-            q_all[self._pan_tilt],
-            X.translation.copy(),
-            pin.Quaternion(X.rotation).coeffs().copy(),
-        )
+        return q_all, velocities, accelerations, torques
 
     def _difference(self, stamp: float, velocities: FloatArray) -> FloatArray:
         """rad/s^2, (v - v_previous) / (t - t_previous); 0 without a previous, earlier state."""

@@ -75,8 +75,16 @@ def joint_power(
     return selected, power
 
 
+def interval_s(previous_s: float, stamp_s: float, max_dt_s: float = math.inf) -> float:
+    """The dt_k of eq. 4 between two stamps: ``stamp_s - previous_s``, 0 when that is negative or
+    longer than ``max_dt_s`` (s). The rule of :class:`PowerIntegrator`, which takes one stamp at
+    a time; :func:`intervals_s` applies it to a series with the same arithmetic."""
+    dt = stamp_s - previous_s
+    return 0.0 if dt < 0.0 or dt > max_dt_s else dt
+
+
 def intervals_s(t_s: ArrayLike, max_dt_s: float = math.inf) -> NDArray[np.float64]:
-    """The dt_k of eq. 4 for a series of stamps, the one rule of :class:`PowerIntegrator` too.
+    """The dt_k of eq. 4 for a series of stamps (:func:`interval_s` on each consecutive pair).
 
     Args:
         t_s: (N,) s, stamps in message order.
@@ -197,7 +205,7 @@ class PowerIntegrator:
 
         dt = 0.0
         if self._last_stamp_s is not None:
-            dt = float(intervals_s((self._last_stamp_s, stamp_s), self.config.max_dt_s)[1])
+            dt = interval_s(self._last_stamp_s, float(stamp_s), self.config.max_dt_s)
             if dt == 0.0 and stamp_s != self._last_stamp_s:
                 self.skipped_intervals += 1
         self._last_stamp_s = stamp_s
