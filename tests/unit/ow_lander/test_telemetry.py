@@ -108,7 +108,7 @@ def test_accelerations_are_the_finite_difference_of_velocities_between_stamps():
         assert np.allclose(accelerations[k], expected, rtol=1e-9)
 
 
-def test_an_observed_state_counts_for_the_next_accelerations_as_an_updated_one():
+def test_a_state_without_kinematics_counts_for_the_next_accelerations_all_the_same():
     names = sorted(ALL_JOINTS)
     zeros = [0.0] * len(names)
     rng = np.random.default_rng(4)
@@ -116,14 +116,14 @@ def test_an_observed_state_counts_for_the_next_accelerations_as_an_updated_one()
     every, sparse = TelemetryBuilder(), TelemetryBuilder()
     for k, (stamp, v) in enumerate(states):
         full = every.update(stamp, names, zeros, v, zeros)
-        if k % 3 == 2:
-            kept = sparse.update(stamp, names, zeros, v, zeros)
-            assert np.array_equal(kept.accelerations, full.accelerations)
+        kinematics = k % 3 == 2
+        kept = sparse.update(stamp, names, zeros, v, zeros, kinematics=kinematics)
+        assert np.array_equal(kept.accelerations, full.accelerations)
+        assert np.array_equal(kept.positions, full.positions)
+        if kinematics:
             assert np.array_equal(kept.scoop_position, full.scoop_position)
         else:
-            assert sparse.observe(stamp, names, zeros, v, zeros) is None
-    with pytest.raises(TelemetryError, match="3 velocity values"):
-        sparse.observe(11.0, names, zeros, [1.0, 2.0, 3.0], zeros)
+            assert np.isnan(kept.scoop_position).all() and np.isnan(kept.scoop_orientation).all()
 
 
 @pytest.mark.parametrize("second_stamp", [10.0, 9.5])

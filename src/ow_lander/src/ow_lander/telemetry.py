@@ -181,6 +181,7 @@ class TelemetryBuilder:
         position: Sequence[float],
         velocity: Sequence[float] = (),
         effort: Sequence[float] = (),
+        kinematics: bool = True,
     ) -> Telemetry:
         """The telemetry of one joint state.
 
@@ -190,6 +191,8 @@ class TelemetryBuilder:
             position: rad, one per name.
             velocity: rad/s, one per name, or empty (not measured).
             effort: N m, one per name, or empty.
+            kinematics: compute the scoop's pose; False leaves it NaN, for a state whose
+                telemetry is not published (it still counts for the next accelerations).
 
         Returns:
             The telemetry; the accelerations use the previous call's velocities and stamp.
@@ -198,50 +201,6 @@ class TelemetryBuilder:
             TelemetryError: a lander joint is missing, or an array's length differs from the
                 names' (the state is skipped; the previous one is kept for the difference).
         """
-        q_all, velocities, accelerations, torques = self._take(
-            stamp, names, position, velocity, effort
-        )
-        arm = self._arm
-        q = q_all[self._to_q]
-        pin.forwardKinematics(self._model, self._data, q)
-        X = pin.updateFramePlacement(self._model, self._data, self._scoop)
-        return Telemetry(
-            stamp,
-            q_all[arm],
-            velocities,
-            accelerations,
-            torques,
-            q_all[self._pan_tilt],
-            X.translation.copy(),
-            pin.Quaternion(X.rotation).coeffs().copy(),
-        )
-
-    def observe(
-        self,
-        stamp: float,
-        names: Sequence[str],
-        position: Sequence[float],
-        velocity: Sequence[float] = (),
-        effort: Sequence[float] = (),
-    ) -> None:
-        """Take a joint state no telemetry is wanted for: checked, and its velocities kept for
-        the next accelerations, as :meth:`update` does, without the kinematics.
-
-        Raises:
-            TelemetryError: as :meth:`update`.
-        """
-        self._take(stamp, names, position, velocity, effort)
-
-    def _take(
-        self,
-        stamp: float,
-        names: Sequence[str],
-        position: Sequence[float],
-        velocity: Sequence[float],
-        effort: Sequence[float],
-    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """Check a joint state and difference its velocities: (all positions, arm velocities,
-        arm accelerations, arm torques)."""
         if names != self._names and tuple(names) != self._names:
             self._index(names)
         n = len(names)
@@ -265,7 +224,23 @@ class TelemetryBuilder:
         torques = (
             np.asarray(effort, dtype=np.float64)[arm] if len(effort) else np.full(len(arm), np.nan)
         )
-        return q_all, velocities, accelerations, torques
+        if kinematics:
+            pin.forwardKinematics(self._model, self._data, q_all[self._to_q])
+            X = pin.updateFramePlacement(self._model, self._data, self._scoop)
+            scoop_position = X.translation.copy()
+            scoop_orientation = pin.Quaternion(X.rotation).coeffs().copy()
+        else:
+            scoop_position, scoop_orientation = np.full(3, np.nan), np.full(4, np.nan)
+        return Telemetry(
+            stamp,
+            q_all[arm],
+            velocities,
+            accelerations,
+            torques,
+            q_all[self._pan_tilt],
+            scoop_position,
+            scoop_orientation,
+        )
 
     def _difference(self, stamp: float, velocities: FloatArray) -> FloatArray:
         """rad/s^2, (v - v_previous) / (t - t_previous); 0 without a previous, earlier state."""

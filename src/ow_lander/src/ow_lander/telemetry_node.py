@@ -100,14 +100,15 @@ class TelemetryNode:
         stamp_s = stamp.to_sec()
         # The kinematics only for the states published (every state counts for accelerations).
         due = self.gate.due(stamp_s)
-        take = self.builder.update if due else self.builder.observe
         try:
-            t = take(stamp_s, msg.name, msg.position, msg.velocity, msg.effort)
+            t = self.builder.update(
+                stamp_s, msg.name, msg.position, msg.velocity, msg.effort, kinematics=due
+            )
         except TelemetryError as error:
             # Without a clock rospy's time stands still: each distinct message is logged once.
             rospy.logwarn_throttle_identical(5.0, f"telemetry: joint state skipped: {error}")
             return
-        if t is None or not self.gate.passes(stamp_s):
+        if not due or not self.gate.passes(stamp_s):
             return
         header = Header(stamp=stamp)
         self._positions.publish(ArmJointPositions(header, t.positions))
