@@ -458,6 +458,49 @@ def test_a_still_shows_no_heightfield_texture():
     assert blue.mean() < 0.01
 
 
+def _drawn_together(joints: dict[str, float], terrain: HeightMap, camera: Camera) -> np.ndarray:
+    """The robot and the terrain in one pybullet client, drawn in one picture."""
+    from ow_mission.render import _add_terrain, _draw
+
+    client = pb.connect(pb.DIRECT)
+    try:
+        body = pb.loadURDF(str(URDF_PATH), useFixedBase=True, physicsClientId=client)
+        index = {
+            pb.getJointInfo(body, i, physicsClientId=client)[1].decode(): i
+            for i in range(pb.getNumJoints(body, physicsClientId=client))
+        }
+        for name, value in joints.items():
+            pb.resetJointState(body, index[name], value, physicsClientId=client)
+        _add_terrain(terrain, client)
+        return _draw(client, camera, shadow=False)[0]
+    finally:
+        pb.disconnect(client)
+
+
+def test_a_picture_without_shadows_is_the_robot_over_its_terrain_by_depth_pixel_for_pixel():
+    """Without shadows the robot is drawn alone and laid over the terrain drawn once: the same
+    pixels as both drawn together, with the scoop below the surface hidden by it."""
+    from ow_lander.description import SCOOP_BELOW_GROUND, UNSTOWED
+    from ow_mission.render import SceneRenderer
+
+    heights = np.full((60, 60), GROUND_Z)
+    heights[25:35, 10:50] -= 0.03  # a trench
+    terrain = HeightMap(heights, 0.05, 0.0, -1.5)
+    camera = Camera((1.8, 0.0, GROUND_Z), 2.0, 35.0, -35.0, 200, 150)
+    with SceneRenderer() as scene:
+        scene.set_terrain(terrain)
+        for joints in (dict(UNSTOWED), dict(SCOOP_BELOW_GROUND)):  # the terrain drawn once
+            scene.set_joints(joints)
+            layered = scene.render(camera, shadow=False)
+            assert np.array_equal(layered, _drawn_together(joints, terrain, camera))
+        scene.set_terrain(None)
+        robot_alone = scene.render(camera, shadow=False)
+    background = robot_alone[0, 0]
+    robot_pixels = np.any(robot_alone != background, axis=2)
+    hidden = robot_pixels & np.all(layered != robot_alone, axis=2)
+    assert hidden.sum() > 20  # the buried scoop (and what the terrain hides) is not drawn
+
+
 def test_the_detector_is_replayed_from_joint_states_when_not_recorded():
     """A scoop tip descending at 25 mm/s that stops at the ground at t = 14 s: the paper's
     detector replayed on FK of the joint states fires within a few /tf periods of the stop."""
