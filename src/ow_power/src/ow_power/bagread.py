@@ -3,7 +3,8 @@
 A run's report needs a dozen topics of the same bags for its power figures, its replay and its
 faults section: :func:`read_messages` opens each file once, parses each message type's definition
 once for the whole run (the definitions in the bags, so any type reads without generated
-messages), deserialises the messages of the wanted topics only and returns them per topic::
+messages), deserialises the messages of the wanted topics only (the joint states and the power
+with :mod:`ow_power.bagdecode`'s faster decoders) and returns them per topic::
 
     from ow_power.bagread import read_messages
 
@@ -30,6 +31,7 @@ from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
+from ow_power.bagdecode import Decoder, fast_decoder
 from ow_power.errors import BagReadError
 
 #: topic -> (bag time ns, deserialised message) of each of its messages, in time order.
@@ -43,6 +45,8 @@ class _Types:
         self.store: Typestore = get_typestore(Stores.EMPTY)
         #: msgtype -> MD5 of the definition registered for it.
         self.md5: dict[str, str] = {}
+        #: msgtype -> its fast decoder (:mod:`ow_power.bagdecode`), None: rosbags' deserialiser.
+        self.decoders: dict[str, Decoder | None] = {}
 
     def register(self, connection: Connection, path: Path) -> None:
         """Know ``connection``'s type, checked against its MD5.
@@ -62,6 +66,7 @@ class _Types:
                 )
                 raise BagReadError(msg)
             self.md5[connection.msgtype] = md5
+            self.decoders[connection.msgtype] = fast_decoder(self.store, connection.msgtype)
         elif known != connection.digest:
             msg = (
                 f"{path}: {connection.topic} has {connection.msgtype} with MD5 "
@@ -97,11 +102,11 @@ def read_messages(bags: Sequence[Path | str], topics: Iterable[str]) -> TopicMes
                     types.register(connection, path)
                 if not connections:  # an empty selection would mean every connection
                     continue
-                deserialize = types.store.deserialize_ros1
+                deserialize, decoders = types.store.deserialize_ros1, types.decoders
                 for connection, bag_ns, data in reader.messages(connections=connections):
-                    messages[connection.topic].append(
-                        (bag_ns, deserialize(data, connection.msgtype))
-                    )
+                    decode = decoders[connection.msgtype]
+                    msg = deserialize(data, connection.msgtype) if decode is None else decode(data)
+                    messages[connection.topic].append((bag_ns, msg))
         except BagReadError:
             raise
         # rosbags asserts on some damaged index records; struct.error is a truncated message.
