@@ -154,6 +154,20 @@ def test_power_node_sums_the_configured_joints_by_name(ros_stack):
     sub.unregister()
 
 
+def _missing_stamps(
+    directory: Path, topics: list[str], expected: set[float]
+) -> dict[str, list[float]]:
+    """Per topic of ``topics`` in the bags in ``directory``, the ``expected`` header stamps (s,
+    to the ms) it lacks."""
+    with AnyReader(sorted(directory.glob("*.bag"))) as reader:
+        seen: dict[str, set[float]] = {topic: set() for topic in topics}
+        wanted = [c for c in reader.connections if c.topic in seen]
+        for connection, _, raw in reader.messages(connections=wanted):
+            stamp = reader.deserialize(raw, connection.msgtype).header.stamp
+            seen[connection.topic].add(round(stamp.sec + 1e-9 * stamp.nanosec, 3))
+    return {topic: sorted(expected - stamps) for topic, stamps in seen.items()}
+
+
 def test_sigint_leaves_a_complete_bag_that_ros_tools_and_the_analysis_read(ros_stack, tmp_path):
     ros_stack.start_node(
         "ow_power",
@@ -176,6 +190,11 @@ def test_sigint_leaves_a_complete_bag_that_ros_tools_and_the_analysis_read(ros_s
     )
     status = Status("record_sigint")
     feeder = Feeder()
+    # A witness of /power beside the recorder: if the recorder misses messages, whether the
+    # power node published them says on which side they were lost.
+    witnessed = []
+    witness = subscribe("/power", Power, lambda m: witnessed.append(m.header.stamp.to_sec()))
+    wait_connected(witness)
     _wait_connected(ros_stack, "/power", ["/joint_states"])
     _wait_connected(
         ros_stack, "/record_sigint", ["/clock", "/power", "/joint_states", "/arm/operation"]
@@ -192,10 +211,19 @@ def test_sigint_leaves_a_complete_bag_that_ros_tools_and_the_analysis_read(ros_s
             feeder.marker(stamp, 1, Operation.START)
         if k == 150:
             feeder.marker(stamp, 1, Operation.END)
-    _wait(
-        lambda: status.latest.get("messages") == 2 * n + 2,
-        lambda: f"{2 * n + 2} recorded messages (status: {status.latest})",
-    )
+    try:
+        _wait(lambda: status.latest.get("messages") == 2 * n + 2, "")
+    except pytest.fail.Exception:
+        recorder.signal(signal.SIGINT)
+        recorder.proc.wait(timeout=20)
+        fed = {round(100.0 + k * PERIOD_S, 3) for k in range(n)}
+        missing = _missing_stamps(tmp_path, ["/joint_states", "/power"], fed)
+        pytest.fail(
+            f"{status.latest.get('messages')} of {2 * n + 2} messages recorded; stamps of the "
+            f"feed missing: {missing}; of /power as the test received it: "
+            f"{sorted(fed - {round(t, 3) for t in witnessed})}"
+        )
+    witness.unregister()
     # How far each topic is written: what a mission waits on before it stops the stack.
     progress = rospy.ServiceProxy("/record_sigint/progress", RecorderProgress)()
     assert list(progress.topics) == ["/arm/operation", "/joint_states", "/power"]
