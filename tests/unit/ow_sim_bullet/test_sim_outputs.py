@@ -238,7 +238,13 @@ def test_a_terrain_changed_within_the_throttle_goes_out_where_the_simulation_sto
             pass
         assert len(made.terrain.messages) == published  # changed, but within the hour
         runner.pause()
-        assert _eventually(lambda: len(made.terrain.messages) == published + 1)
+        went_out = _eventually(lambda: len(made.terrain.messages) == published + 1)
+        sent = [(m.header.stamp.to_sec(), m.heights[0]) for m in made.terrain.messages]
+        assert went_out, (
+            f"{published + 1} terrains expected within 5 s of the pause; (stamp, first height) "
+            f"of those sent: {sent}; terrain version {made.sim.terrain_version}, "
+            f"{made.sim.steps} steps"
+        )
         assert made.terrain.messages[-1].heights[0] == pytest.approx(DEFAULT_GROUND_Z - 0.1)
         assert made.terrain.messages[-1].header.stamp.to_sec() == pytest.approx(made.sim.time)
         # The lockstep status names the newest terrain's stamp: a client planning on the terrain
