@@ -179,9 +179,11 @@ def test_a_stopped_runner_answers_no_more(setup):
         runner.call(lambda: None, timeout_s=0.3)
 
 
-def _eventually(condition, timeout_s: float = 5.0) -> bool:
+def _eventually(condition, timeout_s: float = 30.0) -> bool:
     """Whether ``condition()`` holds within ``timeout_s`` of wall time (the simulation thread
-    publishes when it next runs its loop)."""
+    publishes when it next runs its loop). The bound is only against a hang: what is tested is
+    that it happens at all (here, without waiting out an hour's throttle), and a loaded VM has
+    held both threads still for seconds."""
     deadline = time.monotonic() + timeout_s
     while not condition():
         if time.monotonic() > deadline:
@@ -241,7 +243,7 @@ def test_a_terrain_changed_within_the_throttle_goes_out_where_the_simulation_sto
         went_out = _eventually(lambda: len(made.terrain.messages) == published + 1)
         sent = [(m.header.stamp.to_sec(), m.heights[0]) for m in made.terrain.messages]
         assert went_out, (
-            f"{published + 1} terrains expected within 5 s of the pause; (stamp, first height) "
+            f"{published + 1} terrains expected after the pause; (stamp, first height) "
             f"of those sent: {sent}; terrain version {made.sim.terrain_version}, "
             f"{made.sim.steps} steps"
         )
