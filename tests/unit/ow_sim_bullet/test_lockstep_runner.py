@@ -27,6 +27,9 @@ class _Recorder(SimOutputs):
         self.sim = sim
         self.joint_stamp = self.terrain_stamp = -1.0
         self.states: list[tuple[float, np.ndarray]] = []
+        #: s (sim) of each standing written with its terrain, and how long one takes (wall s)
+        self.stood: list[float] = []
+        self.standing_s = 0.0
 
     def publish(self, force: bool = False) -> None:
         sample = self.sim.sample
@@ -37,7 +40,9 @@ class _Recorder(SimOutputs):
         self.publish()
 
     def publish_standing(self, terrain: bool = True) -> None:
-        pass
+        if terrain:
+            time.sleep(self.standing_s)  # a terrain's serialisation, on a loaded machine
+            self.stood.append(self.sim.time)
 
     def flush(self) -> None:
         pass
@@ -66,6 +71,27 @@ def test_stepping_stops_at_a_hold_and_goes_on_once_released(runner):
     _, stamp, clients, blocked, holding, _ = runner.lockstep_status()
     assert (clients, blocked, holding) == (["arm"], ("arm", "hold"), ["arm"])
     assert stamp == pytest.approx(0.02)  # the last state published, of the step from 0.02
+
+
+def test_a_hold_shows_only_once_the_simulation_stands_with_its_terrain_written(runner):
+    """A client that plans on the terrain the simulation stands on reads the terrain's stamp
+    once the status shows the hold: the hold must not show while the standing outputs (the
+    terrain) are still being written (two equal missions once planned a grind on different
+    terrains)."""
+    outputs = runner.outputs
+    outputs.standing_s = 0.2
+    runner.lockstep_register("arm", enable=True, hold=True)
+    runner.lockstep_ack("arm", 0.1, 0.1, [])  # decided up to 0.1 s, and holding there
+    runner.resume()
+    seen_holding = []
+    deadline = time.monotonic() + 10.0
+    while not seen_holding and time.monotonic() < deadline:
+        now, _, _, _, holding, _ = runner.lockstep_status()
+        if holding:
+            seen_holding.append(now)
+            assert now in outputs.stood, (now, outputs.stood)  # written before it shows
+        time.sleep(0.001)
+    assert seen_holding == [pytest.approx(0.1)]
 
 
 def test_a_late_acknowledgement_holds_the_simulation_back_until_it_comes(runner):

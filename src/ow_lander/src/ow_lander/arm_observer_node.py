@@ -202,14 +202,14 @@ class ArmObserver:
 
     def _catch_up(self) -> None:
         """While this node holds the simulation in the lockstep, wait (``joint_state_timeout_s``
-        of wall time at most) until the newest joint state it published has arrived: the
-        simulation stands there, and a plan started from an older state (a subscriber lagging
-        under load) would differ from run to run."""
+        of wall time at most, each) until it stands held with its outputs (its terrain too)
+        written and the newest joint state it published has arrived: a plan started from an
+        older state or terrain (a subscriber lagging under load) differs from run to run."""
         lockstep = self._lockstep
         if lockstep is None or not lockstep.holding:
             return
         try:
-            stamp = lockstep.published_stamp()
+            stamp = lockstep.held_stamp(self.joint_state_timeout_s)
         except LockstepError as error:
             rospy.logwarn(f"arm services: {error}")
             return

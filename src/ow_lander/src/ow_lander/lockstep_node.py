@@ -163,10 +163,10 @@ class LockstepClient:
             self._hold_until = time_s
             self._send(None)
 
-    def published_stamp(self) -> float:
-        """s (sim), the stamp of the newest joint state the simulation has published (what a
-        subscriber has once it has caught up; :func:`simulation_status`; LockstepError)."""
-        return float(simulation_status().joint_state_stamp)
+    def held_stamp(self, timeout_s: float) -> float:
+        """s (sim), the newest joint state's stamp once the simulation stands held by this
+        client with its outputs (terrain too) written (:func:`wait_until_held`; LockstepError)."""
+        return wait_until_held(self.name, timeout_s)
 
     def settle(self, timeout_s: float) -> None:
         """While holding: wait until the simulation stands at the hold and this node's clock

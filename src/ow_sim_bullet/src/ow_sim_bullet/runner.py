@@ -61,6 +61,9 @@ class SimRunner:
         self._is_shutdown = is_shutdown
         self._pacer = Pacer(real_time_factor)
         self._wake = threading.Condition(threading.Lock())
+        #: s of sim time where the simulation last stood with what it stands at written, the
+        #: terrain included (:meth:`_stand`); :meth:`lockstep_status` reports holders from then.
+        self._stood_at = -1.0
         self._queue: deque[Callable[[], None]] = deque()
         self._paused = start_paused
         self._shutdown = False
@@ -167,12 +170,15 @@ class SimRunner:
         terrain published)."""
         with self._wake:
             now, stamp, lockstep = self.sim.time, self.outputs.joint_stamp, self.lockstep
+            # A hold shows once the simulation stands with its outputs written: a client that
+            # plans on the terrain it stands on reads the terrain's stamp after that.
+            stood = self._stood_at == now
             return (
                 now,
                 stamp,
                 list(lockstep.clients),
                 lockstep.blocking(now),
-                lockstep.holding(now),
+                lockstep.holding(now) if stood else [],
                 self.outputs.terrain_stamp,
             )
 
@@ -242,8 +248,7 @@ class SimRunner:
                 if not self._await_clients(stop_at_hold=True):
                     break  # a lockstep client holds the simulation here
                 self._advance()
-            self.outputs.publish_standing()
-            self.outputs.flush()
+            self._stand()
             return self.sim.time
 
         return self.call(take_steps, CALL_TIMEOUT_S + STEP_TIMEOUT_S * steps)
@@ -276,8 +281,7 @@ class SimRunner:
         pacer.restart(sim.time)
         while not self._is_shutdown():
             if self._paused and self._started:  # it stands: what it stands at goes out first
-                outputs.publish_standing()
-                outputs.flush()
+                self._stand()
             with self._wake:
                 while not self._shutdown and not self._queue and self._paused:
                     self._wake.wait(timeout=_POLL_S)
@@ -290,8 +294,7 @@ class SimRunner:
             for command in commands:
                 command()
             if paused:
-                outputs.publish_standing()
-                outputs.flush()
+                self._stand()
                 pacer.restart(sim.time)
                 continue
             if not self._started:
@@ -326,8 +329,7 @@ class SimRunner:
             blocked = self.lockstep.blocking(now)
         if blocked is None:
             return True
-        self.outputs.publish_standing(terrain=blocked[1] == "hold")
-        self.outputs.flush()
+        self._stand(terrain=blocked[1] == "hold")
         with self._wake:
             while not self._is_shutdown() and not self._shutdown:
                 if return_on_command and self._paused:
@@ -337,6 +339,7 @@ class SimRunner:
                     return True
                 if blocked[1] == "hold":  # e.g. after an acknowledgement: the clock is out, the
                     self.outputs.publish_standing()  # terrain's publisher queues (no flush)
+                    self._stood_at = now  # under _wake
                 if stop_at_hold and blocked[1] == "hold":
                     return False
                 if return_on_command and self._queue:
@@ -351,6 +354,16 @@ class SimRunner:
                 self._wake.wait(timeout=_POLL_S)
                 self.outputs.publish_terrain_if_due()
         return False
+
+    def _stand(self, terrain: bool = True) -> None:
+        """Write what the simulation stands at (/clock; with ``terrain``, a changed terrain),
+        and with the terrain note that it stands here with its outputs out (call without
+        holding ``_wake``)."""
+        self.outputs.publish_standing(terrain=terrain)
+        self.outputs.flush()
+        if terrain:
+            with self._wake:
+                self._stood_at = self.sim.time
 
     def _advance(self) -> None:
         """One physics step and its outputs; first the lockstep clients' commands due then."""
