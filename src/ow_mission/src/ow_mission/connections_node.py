@@ -45,3 +45,9 @@ def wait_sending(subscriber: Any, timeout_s: float) -> bool:
             return False
         time.sleep(_POLL_S)
     return True
+
+
+def service_proxy(name: str, service_class: Any) -> Any:
+    """A ``rospy.ServiceProxy`` for ``name`` (for ROS-free callers such as the test harness's
+    :meth:`ow_mission.stack.RosStack.service`)."""
+    return rospy.ServiceProxy(name, service_class)

@@ -353,10 +353,10 @@ class RosStack:
 
     def service(self, name: str, service_class: Any, timeout_s: float = 30.0) -> Any:
         """A persistent-free ``rospy.ServiceProxy`` for ``name``, after waiting for the service."""
-        import rospy
+        from ow_mission.connections_node import service_proxy
 
         self.wait_for_service(name, timeout_s)
-        return rospy.ServiceProxy(name, service_class)
+        return service_proxy(name, service_class)
 
     def shutdown(self, last: Iterable[str] = ()) -> None:
         """Stop every node started here and delete the parameters set for them.

@@ -42,14 +42,21 @@ services raises :class:`HarnessError` with the end of that log.
 from __future__ import annotations
 
 import os
-import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from typing import Any
 
 import pytest
 
-from ow_lander.description import DEFAULT_GROUND_Z
 from ow_mission.stack import HarnessError, NodeProcess, RosMaster, RosStack, private_master
+from ow_mission.testing_node import (
+    FLAT,
+    join_as_test_node,
+    leave_as_test_node,
+    set_terrain,
+    subscribe,
+    unregister_subscribers,
+    wait_connected,
+)
 
 __all__ = [
     "FLAT",
@@ -61,16 +68,9 @@ __all__ = [
     "ros_stack",
     "set_terrain",
     "start_lander",
+    "subscribe",
     "wait_connected",
 ]
-
-#: The terrain the lander starts on unless a test asks for another.
-FLAT = f"flat:{DEFAULT_GROUND_Z}"
-#: The subscribers :func:`subscribe` made; each module's stack unregisters them when it ends, so
-#: no recorder of an earlier module runs on a later module's messages (one master per process).
-_SUBSCRIBERS: list[Any] = []
-#: s of wall time :func:`subscribe` waits for its connections.
-SUBSCRIBE_WAIT_S = 5.0
 
 
 @pytest.fixture(scope="session")
@@ -83,13 +83,11 @@ def ros_master(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RosMaster]:
             ROS_HOME=str(master.log_dir),
             ROS_LOG_DIR=str(master.log_dir / "log"),
         )
-        import rospy
-
-        rospy.init_node("pytest", anonymous=True, disable_signals=True)
+        join_as_test_node()
         try:
             yield master
         finally:
-            rospy.signal_shutdown("tests finished")
+            leave_as_test_node()
 
 
 @pytest.fixture(scope="module")
@@ -100,8 +98,7 @@ def ros_stack(ros_master: RosMaster) -> Iterator[RosStack]:
         yield stack
     finally:
         stack.shutdown()
-        while _SUBSCRIBERS:
-            _SUBSCRIBERS.pop().unregister()
+        unregister_subscribers()
 
 
 #: sim s per wall s of the simulation :func:`start_lander` starts. Not as fast as it can: a
@@ -150,70 +147,6 @@ def start_lander(ros_stack: RosStack) -> Callable[..., RosStack]:
     return start
 
 
-def set_terrain(stack: RosStack, spec: str = FLAT, lift_arm: bool = False) -> None:
-    """Give the running simulation a new terrain and wait until the arm services have it.
-
-    Args:
-        stack: the running stack.
-        spec: the terrain spec (``flat:<z m>``, ``europa:<seed>``, ``file:<path>``).
-        lift_arm: unstow first, so that no tool is under the new surface.
-
-    Raises:
-        AssertionError: a service refused, or the new flat map did not arrive within 10 s.
-    """
-    import numpy as np
-    import rospy
-
-    from ow_lander.conversions import height_map_from_msg
-    from ow_msgs.msg import HeightMap as HeightMapMsg
-    from ow_msgs.srv import SetTerrain, Unstow
-
-    if lift_arm:
-        response = stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
-        assert response.success, response.message
-    reply = stack.service("/sim/set_terrain", SetTerrain)(terrain=spec)
-    assert reply.success, reply.message
-    if spec.startswith("flat:"):
-        deadline = time.monotonic() + 10.0
-        while True:  # the latched /sim/terrain carries the new, flat map ...
-            msg = rospy.wait_for_message("/sim/terrain", HeightMapMsg, timeout=10)
-            if np.ptp(height_map_from_msg(msg).heights) == 0.0:
-                break
-            assert time.monotonic() < deadline, "/sim/terrain still shows the carved terrain"
-        time.sleep(0.2)  # ... and the arm services, subscribed to it too, have it as well
-
-
-def subscribe(topic: str, data_class: type, callback: Callable[..., Any], **kwargs: Any) -> Any:
-    """A test's ``rospy.Subscriber`` that receives every message of ``topic``.
-
-    rospy keeps one receive queue per topic in a process, and the last ``queue_size`` given by
-    any subscriber of that topic in the process wins (None leaves it as it was); a queue of n
-    keeps only the newest n messages of each socket read, so a recorder lagging a fast
-    simulation loses samples. Every subscriber of the test process is made here, unbounded
-    (:data:`ow_lander.conversions.EVERY_MESSAGE`), so none of them limits another. It is
-    unregistered when the test module's stack ends, if the test has not done so.
-
-    It returns once connected to every publisher the master lists for ``topic`` (at most
-    ``SUBSCRIBE_WAIT_S`` of wall time: a node killed without unregistering stays listed), so
-    the test records from the simulation time it goes on at, not from whenever the connection
-    happens to come up while the simulation runs on.
-    """
-    import rosgraph
-    import rospy
-
-    from ow_lander.conversions import EVERY_MESSAGE
-
-    subscriber = rospy.Subscriber(topic, data_class, callback, queue_size=EVERY_MESSAGE, **kwargs)
-    _SUBSCRIBERS.append(subscriber)
-    publishers, _, _ = rosgraph.Master(rospy.get_name()).getSystemState()
-    resolved = subscriber.resolved_name
-    listed = next((len(nodes) for name, nodes in publishers if name == resolved), 0)
-    deadline = time.monotonic() + SUBSCRIBE_WAIT_S
-    while subscriber.get_num_connections() < listed and time.monotonic() < deadline:
-        time.sleep(0.01)
-    return subscriber
-
-
 def action_client(name: str, action: type, timeout_s: float = 30.0) -> Any:
     """A connected :class:`ow_mission.action_client_node.ActionClient` of action ``name`` (see
     :func:`~ow_mission.action_client_node.connect`).
@@ -227,26 +160,3 @@ def action_client(name: str, action: type, timeout_s: float = 30.0) -> Any:
         return connect(name, action, timeout_s)
     except TimeoutError as error:
         raise AssertionError(str(error)) from error
-
-
-def wait_connected(endpoint: Any, timeout_s: float = 10.0) -> Any:
-    """Wait (wall time) until a rospy Publisher or Subscriber has a connection and return it:
-    a message published, or one published to a subscriber, before then is lost. A subscriber's
-    publishers must write to it on their side too
-    (:func:`~ow_mission.connections_node.publishers_send_to`).
-
-    Raises:
-        AssertionError: no connection within ``timeout_s``.
-    """
-    import rospy
-
-    from ow_mission.connections_node import wait_sending
-
-    if isinstance(endpoint, rospy.Subscriber):
-        assert wait_sending(endpoint, timeout_s), f"nothing sends {endpoint.name} in {timeout_s} s"
-        return endpoint
-    deadline = time.monotonic() + timeout_s
-    while endpoint.get_num_connections() == 0:
-        assert time.monotonic() < deadline, f"nothing connected to {endpoint.name} in {timeout_s} s"
-        time.sleep(0.02)
-    return endpoint

@@ -101,11 +101,11 @@ class SimOutputs:
         self._wrench_pubs = {tool: publishers[f"~{tool}_wrench"] for tool in TOOLS}
         self._tip_ground_pub = publishers["~scoop_tip_ground"]
         self._wrist_pub = publishers["/arm_end_effector_force_torque"]
-        self._tool_wires = {tool: wire.ToolWire(tool, link) for tool, (link, _) in TOOLS.items()}
+        tool_wires = {tool: wire.ToolWire(tool, link) for tool, (link, _) in TOOLS.items()}
         self._tool_pubs = [
             (
                 {tool: publishers[f"~{tool}_{kind}"] for tool in TOOLS},
-                {tool: getattr(self._tool_wires[tool], kind) for tool in TOOLS},
+                {tool: getattr(tool_wires[tool], kind) for tool in TOOLS},
             )
             for kind in ("state", "model_state", "model_wrench")
         ]
