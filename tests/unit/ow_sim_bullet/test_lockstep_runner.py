@@ -104,7 +104,11 @@ def test_a_late_acknowledgement_holds_the_simulation_back_until_it_comes(runner)
     assert (blocked, holding) == (("arm", "ack"), [])
     assert now == pytest.approx(LATENCY + 0.01)  # registered at 0: one latency and a step on
     runner.lockstep_ack("arm", 0.5, None, [])
-    while runner.lockstep_status()[0] < 0.55 and time.monotonic() < deadline:
+    # Until it stands waiting again (not merely past 0.55 s: it may be about to step on).
+    while time.monotonic() < deadline:
+        now, _, _, blocked, _, _ = runner.lockstep_status()
+        if now >= 0.55 and blocked is not None:
+            break
         time.sleep(0.01)
     assert runner.lockstep_status()[0] == pytest.approx(0.5 + LATENCY + 0.01)
 
