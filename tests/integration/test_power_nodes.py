@@ -168,6 +168,21 @@ def _missing_stamps(
     return {topic: sorted(expected - stamps) for topic, stamps in seen.items()}
 
 
+def _transport_counts(stack, feed) -> str:
+    """What each side of the feed's and the power node's connections counted (rospy's bus
+    statistics): which of the test's writer, the power node's reader or its publisher lost
+    messages, and whether a connection was replaced (more than one id)."""
+    _, _, (pub_stats, sub_stats, _) = xmlrpc.client.ServerProxy(
+        stack.master.call("lookupNode", "/power")
+    ).getBusStats("/pytest")
+    written = [(c.id, c.endpoint_id, c.stat_num_msg, not c.done) for c in feed.impl.connections]
+    return (
+        f"the test wrote /joint_states (id, node, messages, open): {written}; the power node "
+        f"received (topic, [id, bytes, messages, drops, open]): {sub_stats}; it published "
+        f"(topic, bytes, [id, bytes, messages, open]): {pub_stats}"
+    )
+
+
 def test_sigint_leaves_a_complete_bag_that_ros_tools_and_the_analysis_read(ros_stack, tmp_path):
     ros_stack.start_node(
         "ow_power",
@@ -214,6 +229,7 @@ def test_sigint_leaves_a_complete_bag_that_ros_tools_and_the_analysis_read(ros_s
     try:
         _wait(lambda: status.latest.get("messages") == 2 * n + 2, "")
     except pytest.fail.Exception:
+        counts = _transport_counts(ros_stack, feeder.joint_states)  # while the recorder is up
         recorder.signal(signal.SIGINT)
         recorder.proc.wait(timeout=20)
         fed = {round(100.0 + k * PERIOD_S, 3) for k in range(n)}
@@ -221,7 +237,8 @@ def test_sigint_leaves_a_complete_bag_that_ros_tools_and_the_analysis_read(ros_s
         pytest.fail(
             f"{status.latest.get('messages')} of {2 * n + 2} messages recorded; stamps of the "
             f"feed missing: {missing}; of /power as the test received it: "
-            f"{sorted(fed - {round(t, 3) for t in witnessed})}"
+            f"{sorted(fed - {round(t, 3) for t in witnessed})}; "
+            f"{counts}"
         )
     witness.unregister()
     # How far each topic is written: what a mission waits on before it stops the stack.
