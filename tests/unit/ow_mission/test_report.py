@@ -501,6 +501,50 @@ def test_a_picture_without_shadows_is_the_robot_over_its_terrain_by_depth_pixel_
     assert hidden.sum() > 20  # the buried scoop (and what the terrain hides) is not drawn
 
 
+def _rss_mb() -> float:
+    status = Path("/proc/self/status").read_text().splitlines()
+    return next(int(line.split()[1]) for line in status if line.startswith("VmRSS:")) / 1024
+
+
+def test_a_renderer_taking_terrain_after_terrain_does_not_grow():
+    """A replay goes through every terrain the mission carved. pybullet keeps a removed
+    heightfield's shape and mesh (about 9 MB each at this size) until its client is emptied:
+    a replay renderer grew by hundreds of MB before each change emptied it."""
+    from ow_mission.render import SceneRenderer
+
+    rng = np.random.default_rng(7)
+    camera = Camera((1.8, 0.0, GROUND_Z), 2.5, 35.0, -35.0, 160, 120)
+    with SceneRenderer() as scene:
+        sizes = []
+        for k in range(24):
+            heights = GROUND_Z + 0.02 * rng.random((126, 126))
+            scene.set_terrain(HeightMap(heights, 0.05, -1.0, -3.0))
+            scene.render(camera, shadow=k % 2 == 0)  # both clients take the terrain
+            sizes.append(_rss_mb())
+    assert sizes[-1] - sizes[3] < 40.0, [round(mb) for mb in sizes]
+
+
+def test_a_shadowed_picture_after_a_terrain_change_keeps_the_pose():
+    """The robot's client is emptied and the robot loaded again when its terrain changes: the
+    pose set before comes back with it."""
+    from ow_lander.description import UNSTOWED
+    from ow_mission.render import SceneRenderer
+
+    camera = Camera((1.8, 0.0, GROUND_Z), 2.0, 35.0, -35.0, 200, 150)
+    first = HeightMap(np.full((40, 40), GROUND_Z), 0.05, 0.5, -1.0)
+    second = HeightMap(np.full((40, 40), GROUND_Z - 0.02), 0.05, 0.5, -1.0)
+    with SceneRenderer() as scene:
+        scene.set_joints(dict(UNSTOWED))
+        scene.set_terrain(first)
+        scene.render(camera)
+        scene.set_terrain(second)
+        again = scene.render(camera)
+    with SceneRenderer() as fresh:
+        fresh.set_joints(dict(UNSTOWED))
+        fresh.set_terrain(second)
+        assert np.array_equal(again, fresh.render(camera))
+
+
 def test_the_detector_is_replayed_from_joint_states_when_not_recorded():
     """A scoop tip descending at 25 mm/s that stops at the ground at t = 14 s: the paper's
     detector replayed on FK of the joint states fires within a few /tf periods of the stop."""

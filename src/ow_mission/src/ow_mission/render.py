@@ -109,24 +109,29 @@ def fit_camera(
     )
 
 
-class _Heightfield:
-    """A terrain as a heightfield body in one pybullet client, rebuilt when the terrain changes."""
+class _TerrainClient:
+    """A pybullet client that holds one terrain as a heightfield, rebuilt when it changes.
 
-    def __init__(self, client: int) -> None:
-        self.client = client
+    Each rebuild empties the client (``resetSimulation``): a removed heightfield body keeps its
+    collision shape and TinyRenderer's mesh of it until then (pybullet refuses to remove a shape
+    it counts as used), about 9 MB per 126 x 126 terrain, so a replay through the default
+    mission's terrains grew a renderer by hundreds of MB.
+    """
+
+    def __init__(self) -> None:
+        self.client = pb.connect(pb.DIRECT)
         self.terrain: HeightMap | None = None
-        self._body: int | None = None
 
-    def show(self, terrain: HeightMap | None) -> None:
-        """Hold ``terrain`` (None: none); nothing to do when it is the one held."""
+    def show(self, terrain: HeightMap) -> None:
+        """Hold ``terrain``; nothing to do when it is the one held."""
         if terrain is self.terrain:
             return
-        if self._body is not None:
-            pb.removeBody(self._body, physicsClientId=self.client)
-            self._body = None
+        pb.resetSimulation(physicsClientId=self.client)
         self.terrain = terrain
-        if terrain is not None:
-            self._body = _add_terrain(terrain, self.client)
+        _add_terrain(terrain, self.client)
+
+    def close(self) -> None:
+        pb.disconnect(self.client)
 
 
 class SceneRenderer:
@@ -145,16 +150,18 @@ class SceneRenderer:
     """
 
     def __init__(self, urdf_path: Path = URDF_PATH) -> None:
+        self._urdf_path = urdf_path
         self._client = pb.connect(pb.DIRECT)
-        self._body = pb.loadURDF(str(urdf_path), useFixedBase=True, physicsClientId=self._client)
+        self._body = -1
         self._joints: dict[str, int] = {}
-        for i in range(pb.getNumJoints(self._body, physicsClientId=self._client)):
-            name = pb.getJointInfo(self._body, i, physicsClientId=self._client)[1].decode()
-            self._joints[name] = i
+        #: rad by joint index: the pose, kept to pose the robot again when it is reloaded
+        self._pose: dict[int, float] = {}
+        #: the terrain beside the robot (shadowed pictures)
+        self._with_robot: HeightMap | None = None
+        self._load(None)
         self._terrain: HeightMap | None = None
-        #: the terrain beside the robot (shadowed pictures), and alone in a client of its own
-        self._with_robot = _Heightfield(self._client)
-        self._alone: _Heightfield | None = None
+        #: the terrain alone in a client of its own (pictures without shadows)
+        self._alone: _TerrainClient | None = None
         #: (terrain, camera, its picture (h, w, 3), its depth buffer (h, w)) drawn last
         self._layer: tuple[HeightMap, Camera, npt.NDArray[np.uint8], DepthArray] | None = None
 
@@ -167,7 +174,7 @@ class SceneRenderer:
     def close(self) -> None:
         """Disconnect the pybullet clients."""
         if self._alone is not None:
-            pb.disconnect(self._alone.client)
+            self._alone.close()
             self._alone = None
         if self._client >= 0:
             pb.disconnect(self._client)
@@ -178,7 +185,31 @@ class SceneRenderer:
         for name, value in joint_positions.items():
             index = self._joints.get(name)
             if index is not None:
+                self._pose[index] = float(value)
                 pb.resetJointState(self._body, index, float(value), physicsClientId=self._client)
+
+    def _show_with_robot(self, terrain: HeightMap | None) -> None:
+        """Hold ``terrain`` beside the robot. A change empties the client and loads the robot
+        again in its pose: removing the old heightfield body would leave its shape and mesh
+        in memory (:class:`_TerrainClient`)."""
+        if terrain is not self._with_robot:
+            self._load(terrain)
+
+    def _load(self, terrain: HeightMap | None) -> None:
+        """Empty the client, then load the robot in its pose and ``terrain`` (None: none)."""
+        pb.resetSimulation(physicsClientId=self._client)
+        self._body = pb.loadURDF(
+            str(self._urdf_path), useFixedBase=True, physicsClientId=self._client
+        )
+        self._joints = {
+            pb.getJointInfo(self._body, i, physicsClientId=self._client)[1].decode(): i
+            for i in range(pb.getNumJoints(self._body, physicsClientId=self._client))
+        }
+        for index, value in self._pose.items():
+            pb.resetJointState(self._body, index, value, physicsClientId=self._client)
+        if terrain is not None:
+            _add_terrain(terrain, self._client)
+        self._with_robot = terrain
 
     def set_terrain(self, terrain: HeightMap | None) -> None:
         """Show ``terrain`` (None: no terrain); the heightfield is rebuilt only when it changed
@@ -201,14 +232,14 @@ class SceneRenderer:
         sizes, free of TinyRenderer's shadow acne (stripes on flat faces)."""
         terrain = self._terrain
         if shadow or terrain is None:
-            self._with_robot.show(terrain)
+            self._show_with_robot(terrain)
             return _draw(self._client, camera, shadow)[0]
-        self._with_robot.show(None)
+        self._show_with_robot(None)
         robot, robot_depth = _draw(self._client, camera, False)
         layer = self._layer
         if layer is None or layer[0] is not terrain or layer[1] != camera:
             if self._alone is None:
-                self._alone = _Heightfield(pb.connect(pb.DIRECT))
+                self._alone = _TerrainClient()
             self._alone.show(terrain)
             layer = (terrain, camera, *_draw(self._alone.client, camera, False))
             self._layer = layer
