@@ -110,6 +110,34 @@ def test_split_by_size(tmp_path):
     assert _count(bags, "/x") == 500
 
 
+def test_a_long_recording_keeps_only_counts_of_the_chunks_it_wrote(tmp_path):
+    """The writer keeps, of each chunk written, the message count per connection: rosbag
+    reads the counts from the bag's index, and the writer's memory does not grow with the
+    messages (it kept a (time, offset) pair per message, about 50 MB for a mission)."""
+    import tracemalloc
+
+    writer = SplitBagWriter(tmp_path)
+    ros1_type, md5, msgdef, data = BagMessages().serialize("std_msgs/msg/String", data="x" * 400)
+    n = 30000  # about 13 MB: a dozen chunks of rosbags' 1 MB
+    tracemalloc.start()
+    try:
+        for k in range(n):
+            writer.write(f"/t{k % 3}", ros1_type, md5, msgdef, 10**9 + k * 10**6, data)
+        grown, _ = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    (bag,) = writer.close()
+    assert grown < 1_500_000, grown  # 4.8 MB before: 160 bytes a message
+    info = subprocess.run(
+        ["rosbag", "info", "--yaml", str(bag)], capture_output=True, text=True, check=True
+    ).stdout
+    assert "messages: 30000" in info
+    assert [_count([bag], f"/t{i}") for i in range(3)] == [10000] * 3
+    with AnyReader([bag]) as reader:
+        stamps = [t for _, t, _ in reader.messages()]
+    assert stamps == [10**9 + k * 10**6 for k in range(n)]
+
+
 @pytest.mark.parametrize("with_power", [True, False])
 def test_energy_per_operation_matches_the_closed_form(tmp_path, with_power):
     bags = _run(tmp_path, split_duration_s=4.0, with_power=with_power)
