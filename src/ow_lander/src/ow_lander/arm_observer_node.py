@@ -25,6 +25,7 @@ from ow_lander.description import (
 )
 from ow_lander.errors import PlanningError
 from ow_lander.execution import ExecutionMonitor
+from ow_lander.guard_streams import GuardStreams
 from ow_lander.lockstep_node import LockstepClient, LockstepError
 from ow_msgs.msg import GroundDetectorSignal
 from owl_msgs.msg import ArmEndEffectorForceTorque
@@ -56,8 +57,7 @@ class ArmObserver:
         self._monitor: ExecutionMonitor | None = None
         #: every joint state (s sim, rad by name) since the monitor was set, for its decisions
         self._pending: deque[tuple[float, dict[str, float]]] = deque()
-        #: s (sim), the newest stamp of each guard input stream received ("force", "tip")
-        self._stream_stamps = {"force": -1.0, "tip": -1.0}
+        self._streams = GuardStreams(self._state_changed)
         self._on_sample: SampleCallback | None = None
         #: the simulation's lockstep, once joined: with no execution running, every joint state
         #: is acknowledged as it arrives (an execution acknowledges its decisions)
@@ -129,8 +129,7 @@ class ArmObserver:
                 stamps.add(transform.header.stamp)
         if stamps:
             with self._state_changed:
-                self._stream_stamps["tip"] = max(s.to_sec() for s in stamps)
-                self._state_changed.notify_all()  # a decision may wait for it
+                self._streams.arrived("tip", max(s.to_sec() for s in stamps))
         for stamp in sorted(stamps):
             monitor = self._monitor
             if monitor is None or not monitor.wants_tip(stamp.to_sec()):
@@ -153,11 +152,10 @@ class ArmObserver:
         force, torque = np.array([f.x, f.y, f.z]), np.array([m.x, m.y, m.z])
         with self._state_changed:
             self._wrench = (force, torque)
-            self._stream_stamps["force"] = t
             monitor = self._monitor
             if monitor is not None:
                 monitor.wrist_force(t, force, torque)
-            self._state_changed.notify_all()  # a decision may wait for it
+            self._streams.arrived("force", t)
         if monitor is not None:
             self._publish_signals(monitor)
 
@@ -169,14 +167,10 @@ class ArmObserver:
         their own, and under load one may lag another by seconds. A stop request ends the wait
         (the clock is paused for it)."""
         stream = monitor.guard_stream(stamp)
-        if stream is not None and not self._state_changed.wait_for(
-            lambda: (
-                self._stream_stamps[stream] >= stamp - STAMP_SLACK_S
-                or monitor.stop_time is not None
-            ),
-            self.joint_state_timeout_s,
+        if stream is not None and not self._streams.wait(
+            stream, stamp, self.joint_state_timeout_s, lambda: monitor.stop_time is not None
         ):
-            late = f"t={self._stream_stamps[stream]:.3f} s, not t={stamp:.3f} s"
+            late = f"t={self._streams.newest[stream]:.3f} s, not t={stamp:.3f} s"
             rospy.logwarn(f"arm services: deciding on {stream} readings up to {late} only")
 
     def wait_quiet(self, quiet_s: float, limit_s: float = 1.0) -> None:
