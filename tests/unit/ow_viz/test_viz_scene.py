@@ -1,8 +1,14 @@
 """The viz node's pure parts: configuration, terrain mesh, tool path, markers (no master)."""
 
+import copy
+import io
+
+import genpy
 import numpy as np
 import pytest
 import yaml
+from geometry_msgs.msg import Point
+from std_msgs.msg import ColorRGBA
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker
 
@@ -66,13 +72,44 @@ def test_a_mesh_needs_two_vertices_per_side():
         terrain_mesh(HeightMap(np.zeros((3, 5)), 0.1, 0.0, 0.0), max_side=1)
 
 
+def _wire(msg, seq=7):
+    """The message's bytes with its header numbered ``seq``, as a publisher numbers it."""
+    msg.header.seq = seq
+    buff = io.BytesIO()
+    msg.serialize(buff)
+    return buff.getvalue()
+
+
 def test_the_terrain_marker_is_a_triangle_list_of_every_corner():
-    mesh = terrain_mesh(HeightMap(np.zeros((3, 3)), 0.1, 0.0, 0.0))
-    marker = terrain_marker(mesh, "base_link", None)
-    assert marker.type == Marker.TRIANGLE_LIST and marker.header.frame_id == "base_link"
-    assert len(marker.points) == len(marker.colors) == 8 * 3
-    corners = np.array([[p.x, p.y, p.z] for p in marker.points])
-    assert np.allclose(corners, mesh.vertices[mesh.triangles.ravel()])
+    heights = np.array([[0.0, 0.1, 0.3], [0.2, -0.1, 0.0], [0.05, 0.0, 0.4]])
+    mesh = terrain_mesh(HeightMap(heights, 0.1, 0.5, -0.2))
+    stamp = genpy.Time(12, 340_000_000)
+    marker = terrain_marker(mesh, "base_link", stamp)
+    received = Marker()
+    received.deserialize(_wire(marker))
+    assert received.type == Marker.TRIANGLE_LIST and received.header.frame_id == "base_link"
+    assert received.header.stamp == stamp and received.header.seq == 7
+    assert len(received.points) == len(received.colors) == 8 * 3
+    corners = np.array([[p.x, p.y, p.z] for p in received.points])
+    assert np.array_equal(corners, mesh.vertices[mesh.triangles.ravel()])
+    # The bytes genpy writes for the same marker built point by point (colours are float32).
+    points = [Point(*p) for p in corners.tolist()]
+    colours = [ColorRGBA(*c) for c in mesh.colours[mesh.triangles.ravel()].tolist()]
+    built = copy.deepcopy(received)
+    built.points, built.colors, built.text = points, colours, ""
+    assert _wire(marker) == _wire(built)
+    marker.text = "terrain"  # the tail after the arrays: text, mesh resource, flag
+    marker.mesh_resource = "package://x/y.dae"
+    built.text, built.mesh_resource = "terrain", "package://x/y.dae"
+    assert _wire(marker) == _wire(built)
+
+
+def test_an_array_marker_refuses_points_given_as_messages():
+    mesh = terrain_mesh(HeightMap(np.zeros((2, 2)), 0.1, 0.0, 0.0))
+    marker = terrain_marker(mesh, "base_link", genpy.Time(1))
+    marker.points = [Point(0.0, 0.0, 0.0)]
+    with pytest.raises(ValueError, match="as arrays only"):
+        _wire(marker)
 
 
 def _trajectory(joints, rows, dt=1.0):

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import io
+import struct
 from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import Point, TransformStamped
-from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker
 
 from ow_viz.errors import SceneError
@@ -16,10 +17,14 @@ from ow_viz.scene import FloatArray, TerrainMesh
 #: materials and the terrain palette.
 PATH_RGBA = (1.0, 0.55, 0.0, 1.0)
 GROUND_RGBA = (0.9, 0.1, 0.8, 1.0)
+_U32 = struct.Struct("<I")
 
 
 def _marker(kind: int, ns: str, frame: str, stamp: Any) -> Marker:
-    marker = Marker()
+    return _fill(Marker(), kind, ns, frame, stamp)
+
+
+def _fill(marker: Marker, kind: int, ns: str, frame: str, stamp: Any) -> Marker:
     marker.header.frame_id = frame
     marker.header.stamp = stamp
     marker.ns = ns
@@ -30,20 +35,54 @@ def _marker(kind: int, ns: str, frame: str, stamp: Any) -> Marker:
     return marker
 
 
-def terrain_marker(mesh: TerrainMesh, frame: str, stamp: Any) -> Marker:
-    """A TRIANGLE_LIST marker (namespace ``terrain``) of ``mesh`` with per-vertex colours.
+class ArrayMarker(Marker):
+    """A ``visualization_msgs/Marker`` whose points and colours are arrays, written to the wire
+    as they are: :attr:`point_array` (N, 3) m as the ``points``, :attr:`color_array` (N, 4) as
+    the ``colors``, while the message's own ``points`` and ``colors`` stay empty.
 
-    Each distinct vertex becomes one ``Point`` and one ``ColorRGBA`` object, referenced by every
-    triangle that uses it: a 101 x 101 map makes 10 201 of each instead of 60 000.
+    Building 60 000 genpy ``Point`` and ``ColorRGBA`` objects and packing them one by one took
+    about 65 ms per terrain (a tenth of the monitors' CPU in a mission); this writes the same
+    bytes from the arrays (tested against genpy). A subscriber receives an ordinary Marker.
     """
-    marker = _marker(Marker.TRIANGLE_LIST, "terrain", frame, stamp)
+
+    # No __slots__ of its own: genpy reads a message's fields from ``__slots__``.
+
+    def __init__(self, *args: Any, **kwds: Any) -> None:
+        super().__init__(*args, **kwds)
+        self.point_array: FloatArray = np.zeros((0, 3))
+        self.color_array: FloatArray = np.zeros((0, 4))
+
+    def serialize(self, buff: Any) -> None:
+        """Write the message as genpy would with the arrays as ``points`` and ``colors``."""
+        if self.points or self.colors:
+            msg = "an ArrayMarker carries its points and colours as arrays only"
+            raise ValueError(msg)
+        rest = io.BytesIO()
+        super().serialize(rest)  # with both lists empty: two zero counts before the tail
+        data = rest.getvalue()
+        # The tail: text and mesh_resource (uint32 length + bytes each), then a uint8.
+        tail = 4 + len(self.text.encode()) + 4 + len(self.mesh_resource.encode()) + 1
+        head = data[: len(data) - tail - 8]
+        points = np.ascontiguousarray(self.point_array, dtype="<f8")
+        colors = np.ascontiguousarray(self.color_array, dtype="<f4")
+        buff.write(head)
+        buff.write(_U32.pack(len(points)))
+        buff.write(points.tobytes())
+        buff.write(_U32.pack(len(colors)))
+        buff.write(colors.tobytes())
+        buff.write(data[len(data) - tail :])
+
+
+def terrain_marker(mesh: TerrainMesh, frame: str, stamp: Any) -> ArrayMarker:
+    """A TRIANGLE_LIST marker (namespace ``terrain``) of ``mesh`` with per-vertex colours: every
+    triangle's three corners in turn (an :class:`ArrayMarker`)."""
+    marker = ArrayMarker()
+    _fill(marker, Marker.TRIANGLE_LIST, "terrain", frame, stamp)
     marker.scale.x = marker.scale.y = marker.scale.z = 1.0
     marker.color.r = marker.color.g = marker.color.b = marker.color.a = 1.0
-    points = [Point(x, y, z) for x, y, z in mesh.vertices.tolist()]
-    colours = [ColorRGBA(r, g, b, a) for r, g, b, a in mesh.colours.tolist()]
-    order = mesh.triangles.ravel().tolist()
-    marker.points = [points[i] for i in order]
-    marker.colors = [colours[i] for i in order]
+    order = mesh.triangles.ravel()
+    marker.point_array = mesh.vertices[order]
+    marker.color_array = mesh.colours[order]
     return marker
 
 
