@@ -98,6 +98,9 @@ def test_a_fault_change_is_acknowledged_once_by_the_node_after_every_component(s
     """The battery and the detector both follow /faults; the node says it has applied a change
     once, after both (a mission waits for each node that acknowledges)."""
     applied = Stamps("/faults/applied", FaultChangeApplied)
+    # The node's publisher adds our connection last: an acknowledgement before then is lost
+    # (under load the battery applied the change the very millisecond it was added).
+    wait_connected(applied.sub)
     stack.client.update_configuration({"high_power_draw": 50.0, "activate_high_power_draw": True})
     try:
         _wait(lambda: any(m.node == "/monitors" for m in applied.messages), "an acknowledgement")
