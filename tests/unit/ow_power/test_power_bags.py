@@ -110,6 +110,35 @@ def test_split_by_size(tmp_path):
     assert _count(bags, "/x") == 500
 
 
+@pytest.mark.parametrize("compression", ["none", "bz2"])
+def test_the_writer_writes_the_bytes_rosbags_writes(tmp_path, compression):
+    """The recorder's writer (its records from bytes made once per connection, the chunks it
+    wrote kept as counts) against rosbags' own, message for message: the same file."""
+    from rosbags.rosbag1 import Writer
+
+    from ow_power.bagwriter import _Writer
+
+    messages = BagMessages()
+    kinds = [messages.serialize("std_msgs/msg/String", data="x" * (40 + 13 * k)) for k in range(3)]
+    files = []
+    for name, writer_class in (("rosbags.bag", Writer), ("ours.bag", _Writer)):
+        writer = writer_class(tmp_path / name)
+        if compression == "bz2":
+            writer.set_compression(Writer.CompressionFormat.BZ2)
+        writer.open()
+        connections = [
+            writer.add_connection(f"/t{k}", "std_msgs/msg/String", msgdef=msgdef, md5sum=md5)
+            for k, (_, md5, msgdef, _) in enumerate(kinds)
+        ]
+        for k in range(40000):  # a few chunks, in uneven turns; stamps past 2**32 ns
+            c = (k * k) % 3
+            writer.write(connections[c], 5 * 10**9 + 1_000_003 * k, kinds[c][3])
+        writer.close()
+        files.append((tmp_path / name).read_bytes())
+    assert compression == "bz2" or len(files[0]) > 3 * (1 << 20)  # chunks of 1 MB
+    assert files[0] == files[1]
+
+
 def test_a_long_recording_keeps_only_counts_of_the_chunks_it_wrote(tmp_path):
     """The writer keeps, of each chunk written, the message count per connection: rosbag
     reads the counts from the bag's index, and the writer's memory does not grow with the

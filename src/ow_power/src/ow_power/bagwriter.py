@@ -31,6 +31,7 @@ from pathlib import Path
 
 from rosbags.interfaces import Connection
 from rosbags.rosbag1 import Writer, WriterError
+from rosbags.rosbag1.reader import RecordType
 from rosbags.rosbag1.writer import WriteChunk
 from rosbags.typesys.msg import normalize_msgtype
 
@@ -43,6 +44,7 @@ ACTIVE_SUFFIX = ".active"
 #: The first field of a message definition, after comments and constants.
 _FIRST_FIELD = re.compile(r"^\s*([\w/]+)(\[\d*\])?\s+(\w+)\s*$")
 _STAMP = struct.Struct("<II")
+_U32 = struct.Struct("<I")
 
 
 @functools.lru_cache(maxsize=256)
@@ -118,15 +120,56 @@ def run_name(directory: Path, prefix: str, start: datetime) -> str:
     return name
 
 
-class _Writer(Writer):
-    """rosbags' writer keeping, of each chunk written to the file, only what the bag's index
-    needs at the end: the message count per connection.
+def _message_record_start(connection_id: int) -> bytes:
+    """The bytes of a message data record up to its time: the record header's length (38),
+    then its fields ``op`` (2: message data), ``conn`` and the name of ``time``, each with its
+    length, as rosbags' ``Header.write`` orders them."""
+    return b"".join(
+        (
+            _U32.pack(38),
+            _U32.pack(4) + b"op=" + bytes([RecordType.MSGDATA]),
+            _U32.pack(9) + b"conn=" + _U32.pack(connection_id),
+            _U32.pack(13) + b"time=",
+        )
+    )
 
-    rosbags keeps a (time, offset) pair for every message it wrote until the file is closed,
-    though the chunk's index records are written right after the chunk: a recorder of a
-    whole mission (300 000 messages) grew by about 50 MB. The index at the close reads only
-    ``len()`` of each connection's entries, which a ``range`` of that length gives.
+
+class _Writer(Writer):
+    """rosbags' writer, writing the same bytes with less work per message and memory.
+
+    - A message's record is written from bytes made once per connection: rosbags built a
+      record header (a dict, each field formatted) for every message and looked the connection
+      up by equality in the list of connections, 8.5 us a message with 20 topics.
+    - Of each chunk written to the file it keeps only what the bag's index needs at the end,
+      the message count per connection. rosbags keeps a (time, offset) pair for every message
+      until the file is closed, though the chunk's index records are written right after the
+      chunk: a recorder of a whole mission (300 000 messages) grew by about 50 MB. The index
+      at the close reads only ``len()`` of each connection's entries, which a ``range`` of
+      that length gives.
     """
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(path)
+        #: connection id -> (the connection, the start of its message records)
+        self._records: dict[int, tuple[Connection, bytes]] = {}
+
+    def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
+        """Append one message (``timestamp`` ns) of ``connection``, as rosbags does."""
+        known = self._records.get(connection.id)
+        if known is None or known[0] is not connection or not self.bio:
+            super().write(connection, timestamp, data)  # checks it, and the file, once
+            self._records[connection.id] = (connection, _message_record_start(connection.id))
+            return
+        chunk = self.chunks[-1]
+        out = chunk.data
+        chunk.connections[connection.id].append((timestamp, out.tell()))
+        chunk.start = min(timestamp, chunk.start)
+        chunk.end = max(timestamp, chunk.end)
+        seconds, nanoseconds = divmod(timestamp, 1_000_000_000)
+        out.write(known[1] + _STAMP.pack(seconds, nanoseconds) + _U32.pack(len(data)))
+        out.write(data)
+        if out.tell() > self.chunk_threshold:
+            self.write_chunk(chunk)
 
     def write_chunk(self, chunk: WriteChunk) -> None:
         super().write_chunk(chunk)
