@@ -26,9 +26,11 @@ from ow_msgs.srv import LockstepRegister, LockstepStatus
 ACK_TOPIC = "/sim/lockstep"
 REGISTER_SERVICE = "/sim/lockstep_register"
 STATUS_SERVICE = "/sim/lockstep_status"
-#: acknowledgements queued by rospy's writer thread: none may be lost (the simulation would
-#: wait for it), so the queue is deep (a second at 100 Hz for 1000 s of backlog).
-_ACK_QUEUE = 100000
+#: acknowledgements are written in the caller's thread (rospy's queue_size None): none may be
+#: lost (the simulation would wait for it), and a simulation that does not read them blocks
+#: the writer instead. A queue handed each to a writer thread: a thread switch per joint state
+#: and ~100 us more CPU per message in the arm services, and the acknowledgement later.
+_ACK_QUEUE = None
 
 
 class LockstepError(Exception):

@@ -19,11 +19,13 @@ from ow_power.model import PowerIntegrator
 # running many times faster than real time outpaces a node that is briefly descheduled. rospy
 # drops messages beyond a subscriber's queue_size (of each socket read) and beyond a publisher's
 # (its writer thread lagging): at 100, then at 1000, /power missed 0.33 s and 0.51 s of joint
-# states on a loaded 2-core machine. So the subscriber's queue is unlimited and the publisher's
-# holds 1000 s of states. (Writing /power in the callback instead, queue_size None, lost two
-# messages in the middle of a 2 s recording in 4 of 13 make test runs.)
-#: /power messages rospy may queue per subscriber before dropping the oldest.
-PUBLISH_QUEUE = 100000
+# states on a loaded 2-core machine. So the subscriber's queue is unlimited, and /power is
+# written in the callback (queue_size None), as the simulation and the telemetry write theirs:
+# nothing is dropped for a subscriber that lags, which slows this node (and through
+# /joint_states the simulation) instead. rospy's queued publisher cost 141 us of CPU per
+# message against 37 us written directly (a fifth of the monitors' CPU in a mission).
+#: /power's rospy queue: None, written in the callback.
+PUBLISH_QUEUE = None
 
 
 class PowerNode:
@@ -34,8 +36,8 @@ class PowerNode:
             ``joint_states`` (sensor_msgs/JointState, every message): position rad, velocity
             rad/s, effort = applied torque N m; joints matched by name.
         Publishes:
-            ``power`` (ow_msgs/Power, queue 100000): one message per usable joint
-            state, stamped with its stamp; energies accumulate from the node's start.
+            ``power`` (ow_msgs/Power, written in the callback): one message per usable
+            joint state, stamped with its stamp; energies accumulate from the node's start.
         Parameters (private, read once; see :class:`~ow_power.config.PowerConfig`):
             ``~auxiliary_power_w`` (float, W, default 43.0): P0.
             ``~motor_efficiency`` (float in (0, 1], default 0.9).
