@@ -5,12 +5,12 @@ import threading
 
 import numpy as np
 import pytest
-import rospy
 from sensor_msgs.msg import JointState
 
 from ow_lander.description import ARM_JOINTS, DEFAULT_GROUND_Z, UNSTOWED
 from ow_lander.model import LanderModel
 from ow_lander.trajectory import read_csv
+from ow_mission.testing import advertise
 from ow_msgs.srv import (
     DeliverSample,
     DigCircular,
@@ -28,7 +28,7 @@ UNSTOWED_STATE = {**UNSTOWED, "j_grinder": 0.0, "j_ant_pan": 0.0, "j_ant_tilt": 
 @pytest.fixture(scope="module")
 def stack(ros_stack, tmp_path_factory):
     directory = tmp_path_factory.mktemp("trajectories")
-    publisher = rospy.Publisher("/joint_states", JointState, queue_size=1)
+    publisher = advertise("/joint_states", JointState, queue_size=1)
     stop = threading.Event()
 
     def feed():

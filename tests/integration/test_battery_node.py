@@ -14,7 +14,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Header
 
-from ow_mission.testing import subscribe, wait_connected
+from ow_mission.testing import advertise, subscribe, wait_connected
 from ow_msgs.msg import Power
 from ow_power.config import BatteryConfig
 from owl_msgs.msg import BatteryRemainingUsefulLife, BatteryStateOfCharge, BatteryTemperature
@@ -56,8 +56,8 @@ def battery(ros_stack):
         "state": ("/battery_state", BatteryState),
     }
     collectors = {key: Collector(*spec) for key, spec in topics.items()}
-    clock = rospy.Publisher("/clock", Clock, queue_size=10)
-    power = rospy.Publisher("/power", Power, queue_size=1000)
+    clock = advertise("/clock", Clock, queue_size=10)
+    power = advertise("/power", Power, queue_size=1000)
     _wait(lambda: power.get_num_connections() >= 1, "the battery node on /power")
     for collector in collectors.values():  # the battery node writes to each
         wait_connected(collector.subscriber)

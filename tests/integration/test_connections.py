@@ -10,7 +10,7 @@ import rospy
 from std_msgs.msg import String
 
 from ow_mission.connections_node import publishers_send_to, wait_sending
-from ow_mission.testing import subscribe
+from ow_mission.testing import advertise, subscribe
 
 
 def test_a_subscription_is_sending_once_its_publishers_write_to_it(ros_stack):
@@ -20,7 +20,7 @@ def test_a_subscription_is_sending_once_its_publishers_write_to_it(ros_stack):
     try:
         assert not publishers_send_to(sub)  # no publisher
         assert not wait_sending(sub, 0.2)
-        pub = rospy.Publisher("/connections_test", String, queue_size=10)
+        pub = advertise("/connections_test", String, queue_size=10)
         assert wait_sending(sub, 10.0)
         # The publisher's side lists this node: what it publishes now arrives.
         assert rospy.get_name() in {c.endpoint_id for c in pub.impl.connections}

@@ -14,7 +14,7 @@ from ow_dem_bridge.api import ToolState
 from ow_dem_bridge.errors import ConfigError
 from ow_dem_bridge.remote_node import make_remote_model
 from ow_dem_bridge.table import load_table
-from ow_mission.testing import HarnessError, subscribe
+from ow_mission.testing import HarnessError, advertise, subscribe
 
 HEADER = "tool,material,depth_m,progress_m,Fx_N,Fy_N,Fz_N,Tx_Nm,Ty_Nm,Tz_Nm"
 ROWS = [
@@ -96,11 +96,9 @@ def state_msg(
 def publisher(topic: str) -> Any:
     import time
 
-    import rospy
-
     from ow_msgs.msg import ToolState as ToolStateMsg
 
-    pub = rospy.Publisher(topic, ToolStateMsg, queue_size=10)
+    pub = advertise(topic, ToolStateMsg, queue_size=10)
     deadline = time.monotonic() + 10.0
     while pub.get_num_connections() == 0 and time.monotonic() < deadline:
         time.sleep(0.02)

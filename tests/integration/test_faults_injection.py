@@ -14,7 +14,7 @@ from dynamic_reconfigure.client import Client
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from ow_mission.testing import subscribe
+from ow_mission.testing import advertise, subscribe
 from ow_msgs.msg import JointStatesFlag
 from ow_msgs.srv import SetPidGains
 from owl_msgs.msg import (
@@ -81,7 +81,7 @@ def later(stack, seconds: float) -> JointState:
 
 
 def test_a_locked_joint_is_flagged_and_does_not_follow_its_command(stack):
-    command = rospy.Publisher("/shou_pitch_position_controller/command", Float64, queue_size=1)
+    command = advertise("/shou_pitch_position_controller/command", Float64, queue_size=1)
     stack.client.update_configuration({"shou_pitch_joint_locked_failure": True})
     flags = stack.flags.wait_for(lambda m: any(m.flags), "a locked joint's flag")
     assert list(flags.name) == sorted(flags.name)

@@ -16,7 +16,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Header
 
-from ow_mission.testing import action_client, subscribe
+from ow_mission.testing import action_client, advertise, subscribe
 from ow_msgs.msg import Power
 from ow_power.config import BatteryConfig
 from owl_msgs.msg import (
@@ -35,8 +35,8 @@ class Feed:
     """/clock and /power at 100 Hz of simulation time, one second per call."""
 
     def __init__(self) -> None:
-        self.clock = rospy.Publisher("/clock", Clock, queue_size=10)
-        self.power = rospy.Publisher("/power", Power, queue_size=1000)
+        self.clock = advertise("/clock", Clock, queue_size=10)
+        self.power = advertise("/power", Power, queue_size=1000)
         self.time_s = 100.0
 
     def seconds(self, n: int) -> None:

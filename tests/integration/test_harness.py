@@ -127,3 +127,26 @@ def test_a_node_is_ready_only_on_what_it_registered_itself(ros_master):
             timeout_s=3.0,
         )
     stack.shutdown()
+
+
+def test_a_modules_publishers_end_with_it_and_a_later_one_gets_its_own_queue(ros_master):
+    """A test's publisher (``advertise``) is unregistered when its module's stack ends: rospy
+    keeps one publisher per topic in the process, with its connections' queue size, and a
+    /joint_states publisher with a queue of one left by an earlier module made a later
+    module's nodes drop joint states."""
+    from sensor_msgs.msg import JointState
+
+    from ow_mission.testing import advertise
+    from ow_mission.testing_node import unregister_subscribers
+
+    topic = "/harness_states"
+    manager = rospy.impl.registration.get_topic_manager()
+    advertise(topic, JointState, queue_size=1)
+    assert manager.get_publisher_impl(topic).queue_size == 1
+    unregister_subscribers()  # what the module's stack does when it ends
+    assert manager.get_publisher_impl(topic) is None
+    publishers, _, _ = ros_master.call("getSystemState")
+    assert topic not in dict(publishers)
+    later = advertise(topic, JointState, queue_size=None)  # the next module's
+    assert later.impl.queue_size is None
+    unregister_subscribers()

@@ -22,7 +22,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ow_lander.description import DEFAULT_GROUND_Z, UNSTOWED
 from ow_lander.model import LanderModel
-from ow_mission.testing import subscribe, wait_connected
+from ow_mission.testing import advertise, subscribe, wait_connected
 from ow_msgs.msg import GuardedMoveResult, Power
 from ow_msgs.srv import GuardedMove, Unstow
 from ow_power.energy import ArmEnergyModel
@@ -131,7 +131,7 @@ def send_trajectory(stack):
     current positions to ``target`` (rad by joint), with velocities (the sim interpolates cubic
     Hermite). The sim clock is paused while the message is delivered, so the move starts at the
     returned sim time exactly, however slow the delivery."""
-    publisher = rospy.Publisher("/sim/joint_trajectory", JointTrajectory, queue_size=1)
+    publisher = advertise("/sim/joint_trajectory", JointTrajectory, queue_size=1)
     deadline = time.monotonic() + 20.0
     while publisher.get_num_connections() == 0 and time.monotonic() < deadline:
         time.sleep(0.01)

@@ -18,7 +18,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from ow_lander.description import ARM_JOINTS, UNSTOWED
-from ow_mission.testing import wait_connected
+from ow_mission.testing import advertise, wait_connected
 from ow_msgs.srv import Unstow
 
 #: rad, the shoulder yaw's URDF limits.
@@ -41,7 +41,7 @@ def arm_state() -> dict[str, float]:
 
 def drive_onto_limit(setpoint: float, limit: float) -> float:
     """Command j_shou_yaw to ``setpoint`` on its topic; wait until it rests on ``limit``."""
-    publisher = rospy.Publisher("/shou_yaw_position_controller/command", Float64, queue_size=1)
+    publisher = advertise("/shou_yaw_position_controller/command", Float64, queue_size=1)
     wait_connected(publisher, WAIT_S)
     publisher.publish(Float64(setpoint))
     deadline = time.monotonic() + WAIT_S

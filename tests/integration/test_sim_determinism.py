@@ -9,7 +9,7 @@ import rospy
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from ow_mission.testing import subscribe, wait_connected
+from ow_mission.testing import advertise, subscribe, wait_connected
 from ow_msgs.srv import StepSimulation
 
 #: rad, an arm pose in front of the lander, reached from the stowed pose by a trajectory.
@@ -29,7 +29,7 @@ def run_once(ros_stack) -> np.ndarray:
         JointState,
         lambda m: rows.append([m.header.stamp.to_sec(), *m.position, *m.velocity, *m.effort]),
     )
-    commands = rospy.Publisher("/sim/joint_trajectory", JointTrajectory, queue_size=1)
+    commands = advertise("/sim/joint_trajectory", JointTrajectory, queue_size=1)
     try:
         deadline = time.monotonic() + 10.0
         while commands.get_num_connections() == 0 and time.monotonic() < deadline:

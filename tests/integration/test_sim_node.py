@@ -25,7 +25,7 @@ from ow_lander.description import (
     SCOOP_BELOW_GROUND,
     URDF_PATH,
 )
-from ow_mission.testing import FLAT, subscribe
+from ow_mission.testing import FLAT, advertise, subscribe
 from ow_msgs.msg import HeightMap
 from ow_msgs.srv import SetPidGains, SetTerrain, StepSimulation
 
@@ -76,9 +76,7 @@ class Sim:
         self.tip_ground = Recorder("/sim/scoop_tip_ground", PointStamped)
         self.terrain = Recorder("/sim/terrain", HeightMap)
         self.clock = Recorder("/clock", Clock)
-        self.trajectory_pub = rospy.Publisher(
-            "/sim/joint_trajectory", JointTrajectory, queue_size=10
-        )
+        self.trajectory_pub = advertise("/sim/joint_trajectory", JointTrajectory, queue_size=10)
         self.setpoint_pubs: dict[str, rospy.Publisher] = {}
 
     def steps(self, n: int) -> float:
@@ -98,7 +96,7 @@ class Sim:
 
     def setpoint(self, controller: str, value: float) -> None:
         if controller not in self.setpoint_pubs:
-            self.setpoint_pubs[controller] = rospy.Publisher(
+            self.setpoint_pubs[controller] = advertise(
                 f"/{controller}_position_controller/command", Float64, queue_size=10
             )
         self.publish(self.setpoint_pubs[controller], Float64(value))

@@ -17,7 +17,7 @@ from std_srvs.srv import Trigger
 
 from ow_lander.description import ARM_JOINTS, UNSTOWED
 from ow_lander.model import LanderModel
-from ow_mission.testing import FLAT, subscribe
+from ow_mission.testing import FLAT, advertise, subscribe
 from ow_msgs.srv import StepSimulation
 from owl_msgs.msg import (
     ArmJointAccelerations,
@@ -100,9 +100,7 @@ def wait_until_complete(recorders, until: float, timeout_s: float = 30.0) -> lis
 
 def command_arm(pose: dict[str, float]) -> None:
     for joint, value in pose.items():
-        publisher = rospy.Publisher(
-            f"/{joint[2:]}_position_controller/command", Float64, queue_size=1
-        )
+        publisher = advertise(f"/{joint[2:]}_position_controller/command", Float64, queue_size=1)
         deadline = time.monotonic() + 10.0
         while publisher.get_num_connections() == 0 and time.monotonic() < deadline:
             time.sleep(0.02)

@@ -50,6 +50,7 @@ import pytest
 from ow_mission.stack import HarnessError, NodeProcess, RosMaster, RosStack, private_master
 from ow_mission.testing_node import (
     FLAT,
+    advertise,
     join_as_test_node,
     leave_as_test_node,
     set_terrain,
@@ -64,6 +65,7 @@ __all__ = [
     "NodeProcess",
     "RosMaster",
     "RosStack",
+    "advertise",
     "ros_master",
     "ros_stack",
     "set_terrain",

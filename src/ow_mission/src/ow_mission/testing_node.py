@@ -22,6 +22,8 @@ FLAT = f"flat:{DEFAULT_GROUND_Z}"
 #: The subscribers :func:`subscribe` made; each module's stack unregisters them when it ends, so
 #: no recorder of an earlier module runs on a later module's messages (one master per process).
 _SUBSCRIBERS: list[Any] = []
+#: The publishers :func:`advertise` made; unregistered when each module's stack ends.
+_PUBLISHERS: list[Any] = []
 #: s of wall time :func:`subscribe` waits for its connections.
 SUBSCRIBE_WAIT_S = 5.0
 
@@ -37,9 +39,26 @@ def leave_as_test_node() -> None:
 
 
 def unregister_subscribers() -> None:
-    """Unregister every subscriber :func:`subscribe` made and the test has not."""
+    """Unregister every subscriber :func:`subscribe` and publisher :func:`advertise` made and
+    the test has not."""
     while _SUBSCRIBERS:
         _SUBSCRIBERS.pop().unregister()
+    while _PUBLISHERS:
+        _PUBLISHERS.pop().unregister()
+
+
+def advertise(topic: str, data_class: type, **kwargs: Any) -> Any:
+    """A test's ``rospy.Publisher``, unregistered when the test module's stack ends.
+
+    rospy keeps one publisher per topic in a process, with the connections it made and the
+    ``queue_size`` they were made with, for as long as any handle is registered: a publisher
+    an earlier module left registered kept advertising ``/joint_states`` with a queue of one,
+    the next module's nodes connected to it at once, and their connections dropped a message
+    whenever the writer thread lagged (a later ``queue_size`` applies to new connections only).
+    """
+    publisher = rospy.Publisher(topic, data_class, **kwargs)
+    _PUBLISHERS.append(publisher)
+    return publisher
 
 
 def set_terrain(stack: RosStack, spec: str = FLAT, lift_arm: bool = False) -> None:
