@@ -26,10 +26,8 @@ from ow_msgs.srv import LockstepRegister, LockstepStatus
 ACK_TOPIC = "/sim/lockstep"
 REGISTER_SERVICE = "/sim/lockstep_register"
 STATUS_SERVICE = "/sim/lockstep_status"
-#: acknowledgements are written in the caller's thread (rospy's queue_size None): none may be
-#: lost (the simulation would wait for it), and a simulation that does not read them blocks
-#: the writer instead. A queue handed each to a writer thread: a thread switch per joint state
-#: and ~100 us more CPU per message in the arm services, and the acknowledgement later.
+#: acknowledgements are written in the caller's thread: none may be lost (the simulation would
+#: wait for it); rospy's queue cost a thread switch and ~100 us of CPU per acknowledgement.
 _ACK_QUEUE = None
 
 
