@@ -137,16 +137,16 @@ def test_a_modules_publishers_end_with_it_and_a_later_one_gets_its_own_queue(ros
     from sensor_msgs.msg import JointState
 
     from ow_mission.testing import advertise
-    from ow_mission.testing_node import unregister_subscribers
+    from ow_mission.testing_node import unregister_endpoints
 
     topic = "/harness_states"
     manager = rospy.impl.registration.get_topic_manager()
     advertise(topic, JointState, queue_size=1)
     assert manager.get_publisher_impl(topic).queue_size == 1
-    unregister_subscribers()  # what the module's stack does when it ends
+    unregister_endpoints()  # what the module's stack does when it ends
     assert manager.get_publisher_impl(topic) is None
     publishers, _, _ = ros_master.call("getSystemState")
     assert topic not in dict(publishers)
     later = advertise(topic, JointState, queue_size=None)  # the next module's
     assert later.impl.queue_size is None
-    unregister_subscribers()
+    unregister_endpoints()

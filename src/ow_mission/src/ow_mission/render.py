@@ -352,7 +352,7 @@ def _draw(client: int, camera: Camera, shadow: bool) -> tuple[npt.NDArray[np.uin
     )
 
 
-def _add_terrain(terrain: HeightMap, client: int) -> int:
+def _add_terrain(terrain: HeightMap, client: int) -> None:
     rows, cols = terrain.shape
     heights = terrain.heights
     low, high = float(heights.min()), float(heights.max())
@@ -375,4 +375,3 @@ def _add_terrain(terrain: HeightMap, client: int) -> int:
     pb.changeVisualShape(
         ground, -1, rgbaColor=list(TERRAIN_RGBA), textureUniqueId=-1, physicsClientId=client
     )
-    return int(ground)

@@ -55,7 +55,7 @@ from ow_mission.testing_node import (
     leave_as_test_node,
     set_terrain,
     subscribe,
-    unregister_subscribers,
+    unregister_endpoints,
     wait_connected,
 )
 
@@ -100,7 +100,7 @@ def ros_stack(ros_master: RosMaster) -> Iterator[RosStack]:
         yield stack
     finally:
         stack.shutdown()
-        unregister_subscribers()
+        unregister_endpoints()
 
 
 #: sim s per wall s of the simulation :func:`start_lander` starts. Not as fast as it can: a

@@ -38,7 +38,7 @@ def leave_as_test_node() -> None:
     rospy.signal_shutdown("tests finished")
 
 
-def unregister_subscribers() -> None:
+def unregister_endpoints() -> None:
     """Unregister every subscriber :func:`subscribe` and publisher :func:`advertise` made and
     the test has not."""
     while _SUBSCRIBERS:

@@ -20,11 +20,9 @@ GROUND_RGBA = (0.9, 0.1, 0.8, 1.0)
 _U32 = struct.Struct("<I")
 
 
-def _marker(kind: int, ns: str, frame: str, stamp: Any) -> Marker:
-    return _fill(Marker(), kind, ns, frame, stamp)
-
-
-def _fill(marker: Marker, kind: int, ns: str, frame: str, stamp: Any) -> Marker:
+def _marker(kind: int, ns: str, frame: str, stamp: Any, marker: Marker | None = None) -> Marker:
+    """``marker`` (default: a new Marker) with its header, namespace, type and pose set."""
+    marker = Marker() if marker is None else marker
     marker.header.frame_id = frame
     marker.header.stamp = stamp
     marker.ns = ns
@@ -77,7 +75,7 @@ def terrain_marker(mesh: TerrainMesh, frame: str, stamp: Any) -> ArrayMarker:
     """A TRIANGLE_LIST marker (namespace ``terrain``) of ``mesh`` with per-vertex colours: every
     triangle's three corners in turn (an :class:`ArrayMarker`)."""
     marker = ArrayMarker()
-    _fill(marker, Marker.TRIANGLE_LIST, "terrain", frame, stamp)
+    _marker(Marker.TRIANGLE_LIST, "terrain", frame, stamp, marker)
     marker.scale.x = marker.scale.y = marker.scale.z = 1.0
     marker.color.r = marker.color.g = marker.color.b = marker.color.a = 1.0
     order = mesh.triangles.ravel()
