@@ -8,10 +8,12 @@ terrain is carved under the digging segments as the simulation carves it. Every 
 planned with each request the mission (or its circular-dig variant) sends it, from the state the
 mission sends it in and from every later one (a request for the trench's bottom, planned before
 the trench is dug, is rightly refused: the scoop would cut into the terrain), for a few
-planner seeds, each seed's planner reused across calls as the node does. One JSON line per
-metric: per service the median, p95 and largest wall time (ms), the calls and failures, and
-the median path length (rad) and work (J) of its plans; the whole mission's plans' path length
-and work; RRT*'s work with our objective vs path length.
+planner seeds, each seed's planner prepared (:meth:`~ow_lander.operations.Operations.prepare`,
+untimed in the calls: the node does it at start-up) and reused across calls as the node does.
+One JSON line per metric: per service the median, p95 and largest wall time (ms), the calls
+and failures, and the median path length (rad) and work (J) of its plans; the preparation's
+median wall time; the whole mission's plans' path length and work; RRT*'s work with our
+objective vs path length.
 
     source env.sh && python bench/planning.py
 """
@@ -198,8 +200,13 @@ def main() -> None:
     works: dict[str, list[float]] = {name: [] for name in SERVICES}
     failures = dict.fromkeys(SERVICES, 0)
     slowest: dict[str, tuple[float, str]] = dict.fromkeys(SERVICES, (0.0, ""))
+    prepare_times = []
     for seed in SEEDS:
         ops = Operations(ArmPlanner(LanderModel(), PlannerConfig(seed=seed)))
+        # What the arm services node does at start-up.
+        began = time.perf_counter()
+        ops.prepare(states["stowed"][0])
+        prepare_times.append(time.perf_counter() - began)
         for call in calls:
             # A fresh map each call: the node gets a new one whenever the simulation carves.
             t = call.terrain
@@ -228,6 +235,7 @@ def main() -> None:
         emit(f"{name}_path_length_median_rad", round(float(np.median(lengths[name])), 3), "rad")
         emit(f"{name}_work_median_j", round(float(np.median(works[name])), 2), "J")
         print(json.dumps({"bench": "planning", "note": f"{name} slowest from {slowest[name][1]}"}))
+    emit("prepare_median_ms", round(float(np.median(prepare_times)) * 1000, 1), "ms")
     emit("mission_path_length_rad", round(mission_length, 3), "rad")
     emit("mission_work_j", round(mission_work, 2), "J")
     rrt_star_comparison()

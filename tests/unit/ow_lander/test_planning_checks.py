@@ -14,7 +14,15 @@ import pytest
 from ow_lander.batch_check import BatchKinematics, BatchTerrainCheck
 from ow_lander.collision import ARM_LINKS, TerrainBlocks
 from ow_lander.config import PlannerConfig
-from ow_lander.description import DEFAULT_GROUND_Z, SCOOP_TIP_FRAME, STOWED, UNSTOWED
+from ow_lander.description import (
+    ANTENNA_JOINTS,
+    ARM_JOINTS,
+    DEFAULT_GROUND_Z,
+    GRINDER_JOINT,
+    SCOOP_TIP_FRAME,
+    STOWED,
+    UNSTOWED,
+)
 from ow_lander.errors import PlanningError
 from ow_lander.model import LanderModel
 from ow_lander.operations import DOCK_CENTRE, DOCK_POUR_HEIGHT, Operations
@@ -278,3 +286,48 @@ def test_a_kept_ik_outcome_gives_the_plan_a_fresh_planner_makes():
     tip = model.fk(used.planner.full(again.end, model.q_from(UNSTOWED)), SCOOP_TIP_FRAME)
     dock = np.add(DOCK_CENTRE, (0.0, 0.0, DOCK_POUR_HEIGHT))
     assert np.allclose(tip[:3, 3], dock, atol=1e-3)
+
+
+def _same_plan(a, b):
+    assert [s.label for s in a.segments] == [s.label for s in b.segments]
+    for x, y in zip(a.segments, b.segments, strict=True):
+        assert np.array_equal(x.waypoints, y.waypoints)
+
+
+@pytest.mark.parametrize("off_chain", [0.0, 0.3])
+def test_a_prepared_planner_delivers_to_the_dock_with_no_new_ik_restarts_and_the_same_plan(
+    off_chain,
+):
+    # Prepared at start-up (grinder and antenna at 0), a planner needs no random IK restarts for
+    # a dock delivery, even from where they are needed (the arm tipped over the dock) and
+    # with the grinder and antenna elsewhere (they do not move the scoop), and plans what an
+    # unprepared planner plans.
+    model = LanderModel()
+    terrain = HeightMap.flat(DEFAULT_GROUND_Z)
+    request = {"use_defaults": True}
+    first = Operations(ArmPlanner(model, PlannerConfig(seed=2)))
+    unstowed = model.q_from(UNSTOWED)
+    tipped = first.planner.full(
+        first.plan("deliver_sample", unstowed, terrain, request).end, unstowed
+    )
+    off = dict.fromkeys((GRINDER_JOINT, *ANTENNA_JOINTS), off_chain)
+    start = model.q_from(off, tipped)
+
+    fresh = Operations(ArmPlanner(LanderModel(), PlannerConfig(seed=2)))
+    expected = fresh.plan("deliver_sample", start, terrain, request)
+    assert fresh.planner._cartesian._restart_outcomes  # the case this test is about
+
+    prepared = Operations(ArmPlanner(LanderModel(), PlannerConfig(seed=2)))
+    prepared.prepare(model.q_from({}))
+    kept = dict(prepared.planner._cartesian._restart_outcomes)
+    assert len(kept) == 12  # six headings, carrying and pouring
+    _same_plan(prepared.plan("deliver_sample", start, terrain, request), expected)
+    assert prepared.planner._cartesian._restart_outcomes.keys() == kept.keys()
+
+
+def test_the_chain_of_a_tool_frame_is_its_arm_joints_and_the_grinders_spin_for_its_tip():
+    model = LanderModel()
+    arm = [model.index(j) for j in ARM_JOINTS]
+    assert list(model.chain_columns(SCOOP_TIP_FRAME)) == arm
+    grinder = list(model.chain_columns("l_grinder_tip"))
+    assert grinder == [*arm[:5], model.index(GRINDER_JOINT)]

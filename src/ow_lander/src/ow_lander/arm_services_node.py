@@ -82,6 +82,8 @@ class ArmServicesNode:
         self.model = LanderModel()
         self.planner = ArmPlanner(self.model, config.planner)
         self.operations = Operations(self.planner)
+        # The dock's IK restarts now rather than in the first delivery that needs them.
+        self.operations.prepare(self.model.q_from({}))
         directory = config.trajectory_dir or os.path.join(
             os.environ.get("ROS_HOME", os.path.expanduser("~/.ros")), "trajectories"
         )

@@ -115,10 +115,7 @@ class CartesianPlanner:
         base: FloatArray,
     ) -> FloatArray:
         """(9,) rad, IK jumping from ``seed_arm`` straight to the target, else from seeded
-        random starts. The random starts do not depend on the arm's state: their outcome for a
-        target is kept (the dock's pour poses are on an elbow branch no continuation reaches,
-        and are asked for on every delivery), so a repeated target costs nothing and gives the
-        answer it gave the first time.
+        random starts (:meth:`_restarted`); the joints IK does not move keep ``base``'s values.
 
         Raises:
             IKError: no start converged.
@@ -130,12 +127,47 @@ class CartesianPlanner:
             )
         except IKError:
             pass
-        others = np.delete(np.asarray(base, dtype=np.float64), self.checker.idx)
+        found = self._restarted(frame, target, rotation, q0)
+        if isinstance(found, IKError):
+            raise IKError(str(found))
+        idx = self.checker.idx
+        q0[idx] = found[idx]
+        return q0
+
+    def prepare(
+        self, frame: str, position: FloatArray, rotation: FloatArray | None, base: FloatArray
+    ) -> bool:
+        """Work out the random-restart IK of a target ahead of the requests that may need it
+        (what :meth:`solve_ik` falls back to), so that none of them pays for it: the answers
+        are the same with or without (see :meth:`_restarted`). True when the target is
+        reachable.
+
+        Args:
+            frame: frame to place.
+            position: (3,) m, in base_link.
+            rotation: (3, 3) in base_link, or None for the position alone.
+            base: (9,) rad, the configuration of the joints IK does not move.
+        """
+        target = np.asarray(position, dtype=np.float64)
+        q0 = np.array(base, dtype=np.float64)
+        return not isinstance(self._restarted(frame, target, rotation, q0), IKError)
+
+    def _restarted(
+        self, frame: str, target: FloatArray, rotation: FloatArray | None, q0: FloatArray
+    ) -> FloatArray | IKError:
+        """The outcome of IK from seeded random starts only: a (9,) rad solution (its arm
+        joints are what matters) or the error. It does not depend on ``q0``'s arm joints (every
+        start replaces them) nor on joints off ``frame``'s chain (the grinder's spin, the
+        antenna), so it is kept per target and the values of the chain's other joints: a
+        repeated target costs nothing and gives the answer it gave the first time. (The dock's
+        pour poses are on an elbow branch no continuation reaches, and are asked for on every
+        delivery.)"""
+        fixed = np.setdiff1d(self.model.chain_columns(frame), self.checker.idx)
         key = (
             frame,
             target.tobytes(),
             None if rotation is None else np.asarray(rotation, dtype=np.float64).tobytes(),
-            others.tobytes(),
+            q0[fixed].tobytes(),
         )
         found = self._restart_outcomes.get(key)
         if found is None:
@@ -155,9 +187,7 @@ class CartesianPlanner:
             if len(self._restart_outcomes) >= RESTART_OUTCOMES_KEPT:
                 self._restart_outcomes.clear()
             self._restart_outcomes[key] = found
-        if isinstance(found, IKError):
-            raise IKError(str(found))
-        return found.copy()
+        return found
 
     def plan_cartesian(
         self,

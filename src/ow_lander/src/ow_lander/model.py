@@ -144,6 +144,19 @@ class LanderModel:
             self._joint_columns[joints] = cols
         return cols
 
+    def chain_columns(self, frame: str) -> npt.NDArray[np.intp]:
+        """Positions in ``q`` of the joints that move ``frame`` (its kinematic chain from
+        base_link), in chain order.
+
+        Raises:
+            ModelError: no frame of that name.
+        """
+        joint = self.model.frames[self.frame_id(frame)].parentJoint
+        return np.array(
+            [self.model.joints[j].idx_q for j in self.model.supports[joint] if j > 0],
+            dtype=np.intp,
+        )
+
     # ----------------------------------------------------------------------------- kinematics
     def fk(self, q: FloatArray, frame: str) -> FloatArray:
         """``X_base_frame``: pose (4, 4) of ``frame`` in base_link at configuration ``q``."""

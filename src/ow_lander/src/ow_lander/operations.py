@@ -166,7 +166,6 @@ class Operations:
         point = np.array([p["x"], p["y"], p["z"]], dtype=float)
         start = self.motions.start(q, terrain)
         ctx = self.motions.context(q, terrain)
-        heading = math.atan2(point[1] - SHOULDER_XY[1], point[0] - SHOULDER_XY[0])
         errors: list[str] = []
         goals: list[tuple[FloatArray, FloatArray]] = []
         # The scoop's heading over the pour point is free: the first heading (in order of
@@ -175,9 +174,8 @@ class Operations:
         # path (RRT*) only when no heading has either. IK follows the arm from its own pose, then
         # from the unstowed one (an arm left tipped at a discard point has its wrist on a branch
         # whose carrying poses touch the hand).
-        headings = (0.0, heading, math.pi - math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2)
         for seed in (start, self.planner.safe):
-            for phi in headings:
+            for phi in _pour_headings(point):
                 solved = self._carry_and_pour(point, phi, seed, ctx, errors)
                 if solved is None:
                     continue
@@ -273,10 +271,7 @@ class Operations:
         """(carry, pour) (6,) rad: the scoop upright with its mouth along ``heading`` rad, then
         tipped, its tip at ``point`` (3,) m, IK from ``seed``; None (the reason added to
         ``errors``) when either is unreachable or collides."""
-        x_axis = np.array([math.cos(heading), math.sin(heading), 0.0])
-        z_axis = np.array([0.0, 0.0, -1.0])
-        carry_R = np.column_stack([x_axis, np.cross(z_axis, x_axis), z_axis])
-        pour_R = carry_R @ ry(-POUR_TILT)
+        carry_R, pour_R = _carry_and_pour_rotations(heading)
         solve = self.planner.solve_ik
         try:
             carry = solve(SCOOP_TIP_FRAME, point, carry_R, seed, ctx)
@@ -285,7 +280,39 @@ class Operations:
             errors.append(str(error))
             return None
 
+    def prepare(self, q: FloatArray) -> None:
+        """Work out ahead the IK that deliveries to the sample dock may fall back to: the
+        scoop's carrying and pouring poses over the dock at every heading tried, from random
+        restarts (~0.1-0.2 s). The arm services node calls it at start-up, so that no delivery
+        pays for them; a plan is the same with or without it (each outcome is a function of the
+        pose and the planner's seed, :meth:`CartesianPlanner.prepare
+        <ow_lander.cartesian.CartesianPlanner.prepare>`).
+
+        Args:
+            q: (9,) rad, a configuration of the joints IK does not move.
+        """
+        point = np.add(DOCK_CENTRE, (0.0, 0.0, DOCK_POUR_HEIGHT))
+        for heading in _pour_headings(point):
+            for rotation in _carry_and_pour_rotations(heading):
+                self.planner.prepare_ik(SCOOP_TIP_FRAME, point, rotation, q)
+
     @staticmethod
     def _delivery(approach: FloatArray, tip: FloatArray, p: dict[str, Any]) -> OperationPlan:
         segments = [PathSegment("approach", approach), PathSegment("pour", tip)]
         return OperationPlan("deliver_sample", segments, p)
+
+
+def _pour_headings(point: FloatArray) -> tuple[float, ...]:
+    """rad, the headings of the scoop's mouth tried over the pour ``point`` (3,) m, in order of
+    preference: along base_link's x, away from the shoulder, then four fixed ones."""
+    away = math.atan2(point[1] - SHOULDER_XY[1], point[0] - SHOULDER_XY[0])
+    return (0.0, away, math.pi - math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2)
+
+
+def _carry_and_pour_rotations(heading: float) -> tuple[FloatArray, FloatArray]:
+    """(3, 3) each, in base_link: the scoop upright with its mouth along ``heading`` rad, and
+    the same tipped to pour."""
+    x_axis = np.array([math.cos(heading), math.sin(heading), 0.0])
+    z_axis = np.array([0.0, 0.0, -1.0])
+    carry = np.column_stack([x_axis, np.cross(z_axis, x_axis), z_axis])
+    return carry, carry @ ry(-POUR_TILT)

@@ -260,6 +260,13 @@ class ArmPlanner:
         """
         return self._cartesian.solve_ik(frame, position, rotation, seed_arm, ctx)
 
+    def prepare_ik(
+        self, frame: str, position: FloatArray, rotation: FloatArray | None, base: FloatArray
+    ) -> bool:
+        """Work out ahead the IK that :meth:`solve_ik` may fall back to for a target (see
+        :meth:`CartesianPlanner.prepare`); True when the target is reachable."""
+        return self._cartesian.prepare(frame, position, rotation, base)
+
     def plan_cartesian(
         self,
         start: FloatArray,
