@@ -8,6 +8,7 @@ import pytest
 import rospy
 from std_srvs.srv import Empty
 
+from ow_mission.stack import node_command
 from ow_mission.testing import HarnessError, RosStack
 
 
@@ -30,6 +31,24 @@ def test_node_started_with_rosrun_offers_its_service_and_is_stopped(ros_master):
     # No stray process of the node's group survives.
     with pytest.raises(ProcessLookupError):
         os.killpg(node.proc.pid, 0)
+
+
+@pytest.mark.parametrize(
+    ("package", "executable"),
+    [("ow_power", "record"), ("ow_mission", "monitors"), ("rosout", "rosout")],
+)
+def test_a_node_runs_as_the_program_rosrun_finds_for_it(package, executable):
+    found = subprocess.run(
+        ["rosrun", "--prefix", "echo", package, executable],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
+    assert node_command(package, executable) == (found[0],)
+
+
+def test_a_program_catkin_did_not_make_is_left_to_rosrun():
+    assert node_command("ow_power", "no_such_node") == ("rosrun", "ow_power", "no_such_node")
 
 
 def test_private_params_are_set_before_start_and_removed_after(ros_master):
