@@ -92,7 +92,9 @@ def main(argv: list[str] | None = None) -> int:
     """Start the node; return a non-zero exit code on a configuration error."""
     import rospy
 
-    rospy.init_node("dem_bridge", argv=argv if argv is not None else sys.argv)
+    from ow_lander.init_node import init_node
+
+    init_node("dem_bridge", argv=argv if argv is not None else sys.argv)
     try:
         config = BridgeConfig.from_dict(rospy.get_param("~", {}))
         model = make_model(config.model, config.model_params)

@@ -16,6 +16,7 @@ from ow_faults.errors import FaultError
 from ow_faults.listener_node import FaultsListener
 from ow_lander.actions import ARM_ACTIONS
 from ow_lander.conversions import EVERY_MESSAGE
+from ow_lander.init_node import init_node
 from ow_msgs.msg import JointStatesFlag
 from owl_msgs.msg import (
     ArmEndEffectorForceTorque,
@@ -151,7 +152,7 @@ class DetectorNode:
 
 def main() -> int:
     """Run the detector until shutdown."""
-    rospy.init_node("detector")
+    init_node("detector")
     DetectorNode()
     rospy.loginfo(
         "detector: publishing /arm_faults_status, /pan_tilt_faults_status, "

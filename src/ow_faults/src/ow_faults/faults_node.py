@@ -13,6 +13,7 @@ from ow_faults.errors import FaultError
 from ow_faults.injection import FaultSet
 from ow_faults.server_node import CheckedServer
 from ow_lander.fault_reaction import CHANGES_TOPIC
+from ow_lander.init_node import init_node
 from ow_msgs.msg import FaultChange
 from ow_msgs.srv import LockstepStatus
 
@@ -77,7 +78,7 @@ def sim_time() -> rospy.Time:
 
 def main() -> int:
     """Run the ``/faults`` server; 1 when its launch-time parameters are bad."""
-    rospy.init_node("faults")
+    init_node("faults")
     try:
         faults = FaultSet.from_dict(rospy.get_param("~", {}))
     except FaultError as error:

@@ -18,6 +18,7 @@ from ow_lander.actions_node import ArmActions
 from ow_lander.config import ArmServicesConfig
 from ow_lander.errors import ConfigError, OwLanderError, TrajectoryError
 from ow_lander.execution_node import ArmExecutor
+from ow_lander.init_node import init_node
 from ow_lander.model import LanderModel
 from ow_lander.operations import Operations
 from ow_lander.planning import ArmPlanner
@@ -215,7 +216,7 @@ class ArmServicesNode:
 
 def main() -> None:
     """Entry point of ``rosrun ow_lander arm_services``."""
-    rospy.init_node("arm_services")
+    init_node("arm_services")
     try:
         config = ArmServicesConfig.from_dict(rospy.get_param("~", {}))
         node = ArmServicesNode(config)

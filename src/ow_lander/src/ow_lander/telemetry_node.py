@@ -13,6 +13,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
 from ow_lander.errors import ConfigError
+from ow_lander.init_node import init_node
 from ow_lander.telemetry import (
     ARM_POSE_FRAME,
     RateGate,
@@ -133,7 +134,7 @@ class TelemetryNode:
 
 def main() -> None:
     """Entry point of ``rosrun ow_lander telemetry``."""
-    rospy.init_node("telemetry")
+    init_node("telemetry")
     # Every message is stamped with its joint state's stamp: this node needs no clock, and with
     # /use_sim_time rospy would receive /clock (as often as /joint_states) for nothing.
     clock = getattr(rospy.impl.simtime, "_clock_sub", None)

@@ -19,6 +19,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 import ow_msgs.srv
+from ow_lander.init_node import init_node
 from ow_lander.lockstep_node import LockstepError, wait_until_held
 from ow_mission.action_client_node import ActionStepClient
 from ow_mission.errors import ConfigError
@@ -130,7 +131,7 @@ class MissionRunner:
         return self.report
 
     def _start(self, stack: RosStack) -> list[NodeProcess]:
-        rospy.init_node("mission", disable_signals=True)
+        init_node("mission", disable_signals=True)
         params = node_parameters(self.config, self.run_dir)
         self._drain = drain_periods(params)
         self._hold = bool(params["arm_services"]["execution"].get("lockstep_hold"))

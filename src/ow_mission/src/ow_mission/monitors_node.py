@@ -28,6 +28,7 @@ from ow_faults.detector_node import DetectorNode
 from ow_lander import errors as lander_errors
 from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.description import URDF_PATH
+from ow_lander.init_node import init_node
 from ow_lander.telemetry import TelemetryConfig
 from ow_lander.telemetry_node import TelemetryNode
 from ow_mission.errors import ConfigError
@@ -94,7 +95,7 @@ class Monitors:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the monitors until shutdown; 1 on a configuration error."""
-    rospy.init_node("monitors", argv=argv)
+    init_node("monitors", argv=argv)
     try:
         Monitors(rospy.get_param("~", {}))
     except ConfigErrors as exc:

@@ -2,9 +2,9 @@
 
 :func:`private_master` starts ``rosmaster --core`` on a free port of 127.0.0.1; a
 :class:`RosStack` starts nodes on it as ``rosrun`` would (:func:`node_command`), waits for their
-services or topics, and stops them (SIGINT, then SIGKILL of each node's whole process group). Each node's output goes to
-``<log_dir>/<name>.log``; a node that dies or never becomes ready raises :class:`HarnessError`
-with the end of that log.
+services or topics, and stops them (SIGINT, then SIGKILL of each node's whole process group).
+Each node's output goes to ``<log_dir>/<name>.log``; a node that dies or never becomes ready
+raises :class:`HarnessError` with the end of that log.
 """
 
 from __future__ import annotations

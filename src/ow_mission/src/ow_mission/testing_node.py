@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 import rospy
 
 from ow_lander.description import DEFAULT_GROUND_Z
+from ow_lander.init_node import init_node
 from ow_mission.connections_node import wait_sending
 
 if TYPE_CHECKING:
@@ -30,7 +31,7 @@ SUBSCRIBE_WAIT_S = 5.0
 
 def join_as_test_node() -> None:
     """Make this process the rospy node ``/pytest_*`` on the master of ``ROS_MASTER_URI``."""
-    rospy.init_node("pytest", anonymous=True, disable_signals=True)
+    init_node("pytest", anonymous=True, disable_signals=True)
 
 
 def leave_as_test_node() -> None:

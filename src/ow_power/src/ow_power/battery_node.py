@@ -14,6 +14,7 @@ from ow_faults.errors import FaultError
 from ow_faults.injection import FaultSet
 from ow_faults.listener_node import FaultsListener
 from ow_lander.conversions import EVERY_MESSAGE
+from ow_lander.init_node import init_node
 from ow_msgs.msg import Power
 from ow_power.battery import Battery
 from ow_power.battery_faults import PowerFaults
@@ -163,7 +164,7 @@ class BatteryNode:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the battery node until shutdown; 1 on a configuration error."""
-    rospy.init_node("battery", argv=argv)
+    init_node("battery", argv=argv)
     try:
         config = BatteryConfig.from_dict(rospy.get_param("~", {}))
         node = BatteryNode(config)

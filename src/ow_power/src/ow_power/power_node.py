@@ -9,6 +9,7 @@ import rospy
 from sensor_msgs.msg import JointState
 
 from ow_lander.conversions import EVERY_MESSAGE
+from ow_lander.init_node import init_node
 from ow_msgs.msg import Power
 from ow_power.config import PowerConfig
 from ow_power.conversions import joint_state_fields, power_message
@@ -85,7 +86,7 @@ class PowerNode:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the power node until shutdown; 1 on a configuration error."""
-    rospy.init_node("power", argv=argv)
+    init_node("power", argv=argv)
     try:
         config = PowerConfig.from_dict(rospy.get_param("~", {}))
     except ConfigError as exc:

@@ -14,6 +14,7 @@ from typing import Any
 import rospy
 from std_msgs.msg import String
 
+from ow_lander.init_node import init_node
 from ow_msgs.srv import RecorderProgress, RecorderProgressRequest, RecorderProgressResponse
 from ow_power.bagwriter import SplitBagWriter, record_time_ns
 from ow_power.config import RecorderConfig
@@ -160,7 +161,7 @@ class RecorderNode:
 def main(argv: list[str] | None = None) -> int:
     """Record until SIGINT or SIGTERM; 1 on a configuration or file error."""
     # Our own handlers: a signal only sets an event, the main thread closes the bag.
-    rospy.init_node("record", argv=argv, disable_signals=True)
+    init_node("record", argv=argv, disable_signals=True)
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:

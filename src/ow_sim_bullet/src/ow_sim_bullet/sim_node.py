@@ -18,14 +18,10 @@ from ow_dem_bridge.api import REMOTE_MODEL_NAME
 from ow_dem_bridge.remote_node import make_remote_model
 from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.description import URDF_PATH
+from ow_lander.init_node import init_node
 from ow_lander.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
-from ow_msgs.srv import (
-    SetTerrain,
-    SetTerrainResponse,
-    StepSimulation,
-    StepSimulationResponse,
-)
+from ow_msgs.srv import SetTerrain, SetTerrainResponse, StepSimulation, StepSimulationResponse
 from ow_sim_bullet import conversions, outputs, wire
 from ow_sim_bullet.config import CONTROLLER_NAMES, SimConfig
 from ow_sim_bullet.errors import CommandError, SimError
@@ -232,7 +228,7 @@ def _set_rostime(sim_time: float) -> None:
 
 def main() -> None:
     """Entry point of ``rosrun ow_sim_bullet sim``."""
-    rospy.init_node("sim")
+    init_node("sim")
     try:
         config = SimConfig.from_dict(rospy.get_param("~", {}))
         node = SimNode(config)

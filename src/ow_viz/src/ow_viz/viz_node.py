@@ -18,6 +18,7 @@ from visualization_msgs.msg import Marker
 from ow_lander.conversions import height_map_from_msg
 from ow_lander.description import BASE_FRAME, URDF_PATH
 from ow_lander.errors import TerrainError
+from ow_lander.init_node import init_node
 from ow_lander.model import LanderModel
 from ow_msgs.msg import GuardedMoveResult, HeightMap
 from ow_viz.config import VizConfig
@@ -150,7 +151,7 @@ class VizNode:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the viz node until shutdown; 1 on a configuration error."""
-    rospy.init_node("viz", argv=argv)
+    init_node("viz", argv=argv)
     try:
         config = VizConfig.from_dict(rospy.get_param("~", {}))
     except ConfigError as exc:
