@@ -441,3 +441,36 @@ def test_goals_rejected_at_once_end_for_the_client_every_time(stack):
         c.send_goal(bad)
         assert c.wait_for_end(30), f"goal {attempt} did not end"
         assert c.get_state() == GoalStatus.REJECTED
+
+
+def test_every_server_publishes_its_status_at_the_configured_rate(stack, joints):
+    # One timer publishes the status of every server (ow_lander.status_timer_node): each
+    # server's periodic status comes actionlib_status_frequency times a second of simulation
+    # time (5 Hz here), all the servers' at the same instants (within a /clock tick: each
+    # status is stamped as it is sent).
+    from actionlib_msgs.msg import GoalStatusArray
+
+    frequency = float(rospy.get_param("/arm_services/actionlib_status_frequency", 5.0))
+    stamps: dict[str, list[float]] = {"ArmUnstow": [], "ArmStop": [], "TaskGrind": []}
+    subs = [
+        subscribe(
+            f"/{name}/status",
+            GoalStatusArray,
+            lambda msg, name=name: stamps[name].append(msg.header.stamp.to_sec()),
+        )
+        for name in stamps
+    ]
+    for sub in subs:
+        wait_connected(sub)
+    joints.wait_sim(4.0)
+    for sub in subs:
+        sub.unregister()
+    for name, times in stamps.items():
+        expected = (times[-1] - times[0]) * frequency + 1
+        assert abs(len(times) - expected) <= 1, (name, times)
+    tick = 1.0 / float(rospy.get_param("/sim/clock_rate_hz", 100.0))
+    first = np.array(stamps["ArmUnstow"])
+    for name in ("ArmStop", "TaskGrind"):
+        other = np.array(stamps[name])
+        apart = np.abs(first[:, None] - other[None, :]).min(axis=1)
+        assert np.median(apart) <= tick + 1e-6, (name, apart)

@@ -30,6 +30,7 @@ from ow_lander.execution_node import ArmExecutor
 from ow_lander.feedback_node import StampedFeedback
 from ow_lander.model import LanderModel
 from ow_lander.operations import Operations
+from ow_lander.status_timer_node import share_status_timer
 from ow_lander.trajectory import Trajectory
 from ow_msgs.msg import Operation
 
@@ -94,6 +95,7 @@ class ArmActions:
         )
         for server in self.servers:
             server.start()
+        self._status_timer = share_status_timer(self.servers)
         self._feedback = {s.ns: StampedFeedback(s, FEEDBACK_PERIOD_S) for s in self.servers}
 
     # ------------------------------------------------------------------------------- goals
