@@ -10,7 +10,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.rosbag1 import Writer
 from rosbags.typesys import Stores, get_typestore
 
-from ow_power.bagread import read_messages
+from ow_power.bagread import merge_messages, read_messages
 from ow_power.bagwriter import SplitBagWriter
 from ow_power.errors import BagReadError
 from ow_power.synthetic import BagMessages
@@ -123,3 +123,31 @@ def test_a_definition_that_does_not_match_its_md5_is_an_error_naming_the_file(tm
         read_messages([path], ["/x"])
     # A topic not asked for is not even parsed.
     assert read_messages([path], ["/y"]) == {"/y": []}
+
+
+def _values(found):
+    return {topic: [(ns, msg.data) for ns, msg in series] for topic, series in found.items()}
+
+
+@pytest.mark.parametrize("split", [0, 1, 2, 3])
+def test_files_read_in_two_goes_and_merged_give_what_one_pass_gives(tmp_path, split):
+    bags = _split_run(tmp_path)
+    topics = ["/a", "/b", "/state", "/nobody"]
+    merged = merge_messages(
+        read_messages(bags[:split], topics), read_messages(bags[split:], topics)
+    )
+    assert _values(merged) == _values(read_messages(bags, topics))
+
+
+def test_merged_messages_at_equal_times_keep_the_earlier_files_first(tmp_path):
+    first = _bag(tmp_path / "first.bag", [("/x", "std_msgs/msg/Float64", 5, _float64(1.0))])
+    second = _bag(
+        tmp_path / "second.bag",
+        [
+            ("/x", "std_msgs/msg/Float64", 5, _float64(2.0)),
+            ("/x", "std_msgs/msg/Float64", 1, _float64(-1.0)),
+        ],
+    )
+    merged = merge_messages(read_messages([first], ["/x"]), read_messages([second], ["/x"]))
+    assert _values(merged) == _values(read_messages([first, second], ["/x"]))
+    assert [v for _, v in _values(merged)["/x"]] == [-1.0, 1.0, 2.0]

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ow_lander.description import STAMP_SLACK_S
+from ow_mission.bag_prefetch import BagPrefetch
 from ow_mission.fault_schedule import AppliedFault
 from ow_mission.mission_config import MissionConfig
 from ow_mission.node_config import STACK_NODES, stack_parameters
@@ -245,9 +246,10 @@ STEPS: tuple[Step, ...] = (
 )
 
 
-def write_report(report: MissionReport) -> None:
+def write_report(report: MissionReport, prefetch: BagPrefetch | None = None) -> None:
     """Write ``report.json``, ``report.md`` and the figures into the run directory, all made
-    from the run's bags after the run (:func:`ow_mission.report.write_run_report`).
+    from the run's bags after the run (:func:`ow_mission.report.write_run_report`; ``prefetch``:
+    the files closed before the stack stopped, read while it stopped).
 
     The steps' energies and peaks become the bags' (the numbers the power plot labels), so the
     table printed afterwards (:meth:`MissionReport.table`) agrees with ``report.md``.
@@ -256,7 +258,9 @@ def write_report(report: MissionReport) -> None:
 
     document = report.to_json()
     document["config"]["terrain_spec"] = report.config.terrain_spec
-    written = write_run_report(report.run_dir, document, renders=report.config.renders)
+    written = write_run_report(
+        report.run_dir, document, renders=report.config.renders, prefetch=prefetch
+    )
     for step, row in zip(report.steps, written["steps"], strict=True):
         step.mechanical_energy_j = float(row["mechanical_energy_j"])
         step.energy_wh = float(row["energy_wh"])

@@ -22,6 +22,7 @@ import ow_msgs.srv
 from ow_lander.init_node import init_node
 from ow_lander.lockstep_node import LockstepError, wait_until_held
 from ow_mission.action_client_node import ActionStepClient
+from ow_mission.bag_prefetch import BagPrefetch
 from ow_mission.errors import ConfigError
 from ow_mission.fault_schedule_node import FaultScheduleRunner
 from ow_mission.mission import (
@@ -36,7 +37,7 @@ from ow_mission.mission import (
     write_report,
 )
 from ow_mission.mission_config import USAGE, MissionConfig, config_from_argv
-from ow_mission.report import preload
+from ow_mission.report import preload, read_report_messages
 from ow_mission.stack import (
     HarnessError,
     NodeProcess,
@@ -95,6 +96,7 @@ class MissionRunner:
         self.run_dir.mkdir(parents=True)
         (self.run_dir / "renders").mkdir()
         nodes: list[NodeProcess] = []
+        prefetch: BagPrefetch | None = None
         try:
             with private_master(self.run_dir / "ros") as master:
                 os.environ.update(
@@ -123,11 +125,13 @@ class MissionRunner:
                     # The nodes may still be working through the last states (a loaded
                     # machine lost 0.35 s of /power): stop once the recorder has all of them.
                     self.report.recording_note = wait_recorded(state, self._drain, DRAIN_TIMEOUT_S)
+                    # The closed split files are read while the stack stops (docs/mission.md).
+                    prefetch = BagPrefetch(self.run_dir / "bags", read_report_messages)
                     stack.shutdown(last=("record",))  # it closes its bag on SIGINT
         except (HarnessError, ConfigError) as exc:
             self.report.error = str(exc)
         self.report.wall_time_s = time.monotonic() - wall0
-        write_report(self.report)
+        write_report(self.report, prefetch)
         return self.report
 
     def _start(self, stack: RosStack) -> list[NodeProcess]:

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from ow_mission.bag_prefetch import BagPrefetch
 from ow_mission.node_config import stack_parameters
 from ow_mission.recording import Recording, recording_from_messages
 from ow_mission.replay import ReplayRendering, start_replay
@@ -309,9 +310,11 @@ def faults_section(
     return None
 
 
-def _report_messages(bags: Sequence[Path], figures: Figures) -> TopicMessages | None:
-    """:func:`read_report_messages` of ``bags`` (none without bags), or None with a note when
-    they cannot be read."""
+def _report_messages(
+    bags: Sequence[Path], figures: Figures, prefetch: BagPrefetch | None = None
+) -> TopicMessages | None:
+    """:func:`read_report_messages` of ``bags`` (none without bags; with ``prefetch``, of the
+    files it did not read), or None with a note when they cannot be read."""
     if not bags:
         figures.notes["bags"] = "No bag was recorded: no figure could be made."
         return {}
@@ -320,7 +323,7 @@ def _report_messages(bags: Sequence[Path], figures: Figures) -> TopicMessages | 
     def read() -> str | None:
         nonlocal messages
         try:
-            messages = read_report_messages(bags)
+            messages = read_report_messages(bags) if prefetch is None else prefetch.messages(bags)
         except BagReadError as exc:
             return f"the bags could not be read, so no figure was made from them: {exc}"
         return None
@@ -407,7 +410,10 @@ def preload() -> None:
 
 
 def write_run_report(
-    run_dir: Path, document: dict[str, Any], renders: bool = True
+    run_dir: Path,
+    document: dict[str, Any],
+    renders: bool = True,
+    prefetch: BagPrefetch | None = None,
 ) -> dict[str, Any]:
     """Make the figures from ``run_dir/bags``, then write ``report.json`` and ``report.md``.
 
@@ -417,6 +423,8 @@ def write_run_report(
             ground found); completed in place with the bags' energies, the trench verdict and
             ``figures`` (role -> file name relative to ``run_dir``).
         renders: also make the stills and the replay (they take most of the time).
+        prefetch: the bag files closed before the run ended, read meanwhile (the mission's
+            :class:`~ow_mission.bag_prefetch.BagPrefetch`); None reads every file here.
 
     Returns:
         ``document`` as written.
@@ -425,7 +433,7 @@ def write_run_report(
     figures = Figures()
     wall0 = time.monotonic()
     bags = sorted((run_dir / "bags").glob("*.bag"))
-    messages = _report_messages(bags, figures)
+    messages = _report_messages(bags, figures, prefetch)
     if messages is not None and bags:
         _figures_from_bags(run_dir, document, bags, messages, figures, renders)
     if messages is not None:

@@ -1,0 +1,74 @@
+"""The bag files closed before a run ends, read while it ends (ow_mission.bag_prefetch): the
+report gets the same messages as from one pass over every file. No ROS."""
+
+from __future__ import annotations
+
+import shutil
+from datetime import datetime
+from pathlib import Path
+
+from ow_mission.bag_prefetch import BagPrefetch
+from ow_power.bagread import read_messages
+from ow_power.bagwriter import SplitBagWriter
+from ow_power.synthetic import BagMessages
+
+TOPICS = ("/a", "/state")
+
+
+def _split_run(directory: Path) -> list[Path]:
+    """3 s of /a (Float64 at 10 Hz) and a latched /state, in 1 s files."""
+    writer = SplitBagWriter(directory, split_duration_s=1.0, start=datetime(2025, 1, 2, 3, 4, 5))
+    messages = BagMessages()
+
+    def put(topic: str, msgtype: str, t_ns: int, latching: bool = False, **fields: object) -> None:
+        ros1_type, md5, msgdef, data = messages.serialize(msgtype, **fields)
+        writer.write(topic, ros1_type, md5, msgdef, t_ns, data, latching=latching)
+
+    put("/state", "std_msgs/msg/String", 10**9, latching=True, data="ready")
+    for k in range(30):
+        put("/a", "std_msgs/msg/Float64", 10**9 + k * 10**8, data=float(k))
+    return writer.close()
+
+
+def _values(found):
+    return {topic: [(ns, msg.data) for ns, msg in series] for topic, series in found.items()}
+
+
+def read(bags):
+    return read_messages(bags, TOPICS)
+
+
+def test_files_closed_later_are_read_after_and_merged(tmp_path):
+    made = _split_run(tmp_path / "made")
+    run = tmp_path / "run"
+    run.mkdir()
+    for path in made[:2]:
+        shutil.copy(path, run)
+    calls: list[list[str]] = []
+
+    def reading(bags):
+        calls.append([p.name for p in bags])
+        return read(bags)
+
+    prefetch = BagPrefetch(run, reading)
+    shutil.copy(made[2], run)  # the recorder closes its last file as the stack stops
+    bags = sorted(run.glob("*.bag"))
+    assert _values(prefetch.messages(bags)) == _values(read(bags))
+    assert calls == [[p.name for p in made[:2]], [made[2].name]]  # each file read once
+
+
+def test_a_failed_prefetch_or_other_files_are_read_again(tmp_path):
+    made = _split_run(tmp_path)
+    calls: list[list[str]] = []
+
+    def failing_once(bags):
+        calls.append([p.name for p in bags])
+        if len(calls) == 1:
+            raise OSError("disk went away")
+        return read(bags)
+
+    prefetch = BagPrefetch(tmp_path, failing_once)
+    assert _values(prefetch.messages(made)) == _values(read(made))
+    assert calls == [[p.name for p in made]] * 2
+    other = BagPrefetch(tmp_path, read)
+    assert _values(other.messages(made[1:])) == _values(read(made[1:]))
