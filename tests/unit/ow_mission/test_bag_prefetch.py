@@ -9,25 +9,13 @@ from pathlib import Path
 
 from ow_mission.bag_prefetch import BagPrefetch
 from ow_power.bagread import read_messages
-from ow_power.bagwriter import SplitBagWriter
-from ow_power.synthetic import BagMessages
+from ow_power.synthetic import write_split_series
 
 TOPICS = ("/a", "/state")
 
 
 def _split_run(directory: Path) -> list[Path]:
-    """3 s of /a (Float64 at 10 Hz) and a latched /state, in 1 s files."""
-    writer = SplitBagWriter(directory, split_duration_s=1.0, start=datetime(2025, 1, 2, 3, 4, 5))
-    messages = BagMessages()
-
-    def put(topic: str, msgtype: str, t_ns: int, latching: bool = False, **fields: object) -> None:
-        ros1_type, md5, msgdef, data = messages.serialize(msgtype, **fields)
-        writer.write(topic, ros1_type, md5, msgdef, t_ns, data, latching=latching)
-
-    put("/state", "std_msgs/msg/String", 10**9, latching=True, data="ready")
-    for k in range(30):
-        put("/a", "std_msgs/msg/Float64", 10**9 + k * 10**8, data=float(k))
-    return writer.close()
+    return write_split_series(directory, datetime(2025, 1, 2, 3, 4, 5))
 
 
 def _values(found):

@@ -11,31 +11,15 @@ from rosbags.rosbag1 import Writer
 from rosbags.typesys import Stores, get_typestore
 
 from ow_power.bagread import merge_messages, read_messages
-from ow_power.bagwriter import SplitBagWriter
 from ow_power.errors import BagReadError
-from ow_power.synthetic import BagMessages
+from ow_power.synthetic import write_split_series
 
 STORE = get_typestore(Stores.ROS1_NOETIC)
 START = datetime(2025, 1, 2, 3, 4, 5)
 
 
 def _split_run(directory: Path) -> list[Path]:
-    """3 s of /a (Float64 at 10 Hz, value = t) and /b (Int32 at 2 Hz), a latched /state
-    published once: split into 1 s files, so that /state is repeated at the start of each."""
-    writer = SplitBagWriter(directory, split_duration_s=1.0, start=START)
-    messages = BagMessages()
-
-    def put(topic: str, msgtype: str, t_ns: int, latching: bool = False, **fields: object) -> None:
-        ros1_type, md5, msgdef, data = messages.serialize(msgtype, **fields)
-        writer.write(topic, ros1_type, md5, msgdef, t_ns, data, latching=latching)
-
-    put("/state", "std_msgs/msg/String", 10**9, latching=True, data="ready")
-    for k in range(30):
-        t_ns = 10**9 + k * 10**8
-        put("/a", "std_msgs/msg/Float64", t_ns, data=t_ns * 1e-9)
-        if k % 5 == 0:
-            put("/b", "std_msgs/msg/Int32", t_ns, data=k)
-    return writer.close()
+    return write_split_series(directory, START)
 
 
 def _bag(path: Path, messages: list[tuple[str, str, int, object]]) -> Path:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -174,3 +175,24 @@ def write_run(
                     trajectory_file="",
                 )
     return t_ns * 1e-9
+
+
+def write_split_series(directory: Path, start: datetime) -> list[Path]:
+    """3 s of ``/a`` (std_msgs/Float64 at 10 Hz, value = t s) and ``/b`` (std_msgs/Int32 at 2 Hz,
+    value = its 10 Hz index), and a latched ``/state`` (std_msgs/String "ready") published once,
+    from t = 1 s; written by :class:`SplitBagWriter` in 1 s files, so that ``/state`` is written
+    again at the start of each. The split files (3), in order."""
+    writer = SplitBagWriter(directory, split_duration_s=1.0, start=start)
+    messages = BagMessages()
+
+    def put(topic: str, msgtype: str, t_ns: int, latching: bool = False, **fields: Any) -> None:
+        ros1_type, md5, msgdef, data = messages.serialize(msgtype, **fields)
+        writer.write(topic, ros1_type, md5, msgdef, t_ns, data, latching=latching)
+
+    put("/state", "std_msgs/msg/String", 10**9, latching=True, data="ready")
+    for k in range(30):
+        t_ns = 10**9 + k * 10**8
+        put("/a", "std_msgs/msg/Float64", t_ns, data=t_ns * 1e-9)
+        if k % 5 == 0:
+            put("/b", "std_msgs/msg/Int32", t_ns, data=k)
+    return writer.close()
