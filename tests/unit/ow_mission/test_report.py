@@ -11,6 +11,7 @@ import numpy as np
 import pybullet as pb
 import pytest
 
+import ow_mission.report as report_module
 from ow_lander.description import URDF_PATH
 from ow_lander.terrain import HeightMap
 from ow_mission.errors import ReplayError
@@ -605,3 +606,27 @@ def test_stills_render_in_their_own_process_and_a_failure_names_what_is_missing(
     bad.path.mkdir(parents=True)  # a directory where the file must go: the child fails
     with pytest.raises(RuntimeError, match=r"exited with code 1; missing: 01_y.png"):
         StillsRendering([bad], recording, []).finish()
+
+
+@pytest.mark.parametrize("collecting", [True, False])
+def test_the_report_pauses_the_cyclic_collector_and_leaves_it_as_it_was(
+    tmp_path, monkeypatch, collecting
+):
+    import gc
+
+    seen = []
+    original = report_module._report_messages
+
+    def watched(*args, **kwargs):
+        seen.append(gc.isenabled())
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(report_module, "_report_messages", watched)
+    was = gc.isenabled()
+    (gc.enable if collecting else gc.disable)()
+    try:
+        write_run_report(tmp_path, _document(), renders=False)
+        assert seen == [False]
+        assert gc.isenabled() is collecting
+    finally:
+        (gc.enable if was else gc.disable)()

@@ -17,6 +17,7 @@ by two worker processes while this one makes the other figures.
 from __future__ import annotations
 
 import functools
+import gc
 import json
 import math
 import sys
@@ -433,15 +434,25 @@ def write_run_report(
     figures = Figures()
     wall0 = time.monotonic()
     bags = sorted((run_dir / "bags").glob("*.bag"))
-    messages = _report_messages(bags, figures, prefetch)
-    if messages is not None and bags:
-        _figures_from_bags(run_dir, document, bags, messages, figures, renders)
-    if messages is not None:
-        _attempt(
-            figures,
-            "battery",
-            functools.partial(faults_section, run_dir, document, messages, figures),
-        )
+    # Python's cyclic collector paused while the bags' messages are held (66 000 objects and
+    # their arrays for the default mission): each collection walked all of them, and in the
+    # forked renderers it wrote to every page they share with this process. The report took
+    # 0.8 s less CPU here, and its peak memory 50 MB less (docs/performance.md).
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        messages = _report_messages(bags, figures, prefetch)
+        if messages is not None and bags:
+            _figures_from_bags(run_dir, document, bags, messages, figures, renders)
+        if messages is not None:
+            _attempt(
+                figures,
+                "battery",
+                functools.partial(faults_section, run_dir, document, messages, figures),
+            )
+    finally:
+        if collecting:
+            gc.enable()
     document["figures"] = dict(figures.files)
     document["figure_notes"] = dict(figures.notes)
     document["report_seconds"] = time.monotonic() - wall0
