@@ -7,6 +7,7 @@ import dataclasses
 import threading
 import time
 
+import numpy as np
 import pytest
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -223,7 +224,7 @@ def test_a_slow_clock_still_reaches_where_the_simulation_stops():
 
 
 def test_a_terrain_changed_within_the_throttle_goes_out_where_the_simulation_stops():
-    """The terrain is republished at most every ``terrain_publish_period`` s of wall time
+    """The terrain is republished at most every ``terrain_publish_period`` s of simulation time
     while the simulation runs, but the one it stands on when paused or held goes out at once:
     the last terrain of a run is recorded however soon the run ends."""
     made = Setup(dataclasses.replace(SimConfig(), terrain_publish_period=3600.0))
@@ -263,3 +264,29 @@ def test_a_terrain_changed_within_the_throttle_goes_out_where_the_simulation_sto
         runner.stop()
         thread.join(timeout=5.0)
         made.sim.close()
+
+
+def _carved_terrain_stamps(slow_steps: bool) -> list[float]:
+    """Stamps of the terrains published over 50 steps that each change the terrain."""
+    made = Setup(dataclasses.replace(SimConfig(), terrain_publish_period=0.1))
+    try:
+        for k in range(50):
+            made.sim.set_terrain(flat(DEFAULT_GROUND_Z - 0.001 * k))
+            made.steps(1)
+            if slow_steps and k % 7 == 0:
+                time.sleep(0.02)
+        return [m.header.stamp.to_sec() for m in made.terrain.messages]
+    finally:
+        made.sim.close()
+
+
+def test_a_terrain_carved_all_the_time_goes_out_every_period_of_simulation_time():
+    # Changed at every step, the terrain is published once terrain_publish_period of sim time
+    # has passed since the last, however long the steps take in wall time: the bags of equal
+    # runs hold the same terrains (throttled in wall time, a replay of the same run differed).
+    stamps = _carved_terrain_stamps(slow_steps=False)
+    assert stamps == _carved_terrain_stamps(slow_steps=True)
+    assert len(stamps) == 5
+    step = SimConfig().dt
+    for gap in np.diff(stamps):
+        assert 0.1 - 1e-9 <= gap <= 0.1 + step + 1e-9

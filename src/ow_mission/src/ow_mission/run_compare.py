@@ -31,10 +31,12 @@ WALL_CLOCK_KEYS = frozenset(
         "seconds_to_make",
     }
 )
-#: Topics compared by default: the simulation's streams, power, the battery and the fault
-#: telemetry (the detector's status, stamped with the sim time of what changed it; the flags).
+#: Topics compared by default: the simulation's streams (the carved terrains too), power, the
+#: battery and the fault telemetry (the detector's status, stamped with the sim time of what
+#: changed it; the flags).
 TOPICS = (
     "/joint_states",
+    "/sim/terrain",
     "/power",
     "/arm_end_effector_force_torque",
     "/sim/scoop_wrench",

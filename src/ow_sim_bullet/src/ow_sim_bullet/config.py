@@ -212,7 +212,8 @@ class SimConfig:
         tf_rate_hz: Hz of sim time, /tf.
         wrench_rate_hz: Hz of sim time, contact wrenches and the ground-truth tip height.
         tool_state_rate_hz: Hz of sim time, /sim/scoop_state and /sim/grinder_state.
-        terrain_publish_period: s of wall time, minimum interval between /sim/terrain updates.
+        terrain_publish_period: s of simulation time, minimum interval between /sim/terrain
+            updates while carving (sim time: the terrains recorded are the same in every run).
         noise_seed: seed of the injected F/T sensor noise (>= 0; equal seeds, equal runs).
         lockstep_latency_s: s of sim time from a joint state to the commands a lockstep client
             decided on it (:mod:`ow_sim_bullet.lockstep`); at least the longest gap between two
@@ -247,7 +248,7 @@ class SimConfig:
     tf_rate_hz: float = 30.0
     wrench_rate_hz: float = 50.0
     tool_state_rate_hz: float = 10.0
-    terrain_publish_period: float = 0.5
+    terrain_publish_period: float = 4.0
     noise_seed: int = 0
     lockstep_latency_s: float = 0.1
     lockstep_timeout_s: float = 30.0

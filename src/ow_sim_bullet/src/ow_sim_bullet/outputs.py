@@ -123,7 +123,8 @@ class SimOutputs:
         self._tf_tick = Periodic(config.tf_rate_hz)
         self._wrench_tick = Periodic(config.wrench_rate_hz)
         self._tool_tick = Periodic(config.tool_state_rate_hz)
-        self._terrain_throttle = Throttle(config.terrain_publish_period)
+        # In simulation time: the terrains a bag holds are the same in every equal run.
+        self._terrain_throttle = Throttle(config.terrain_publish_period, lambda: self.sim.time)
         #: the tools' last snapshots (the tool states are published from them).
         self.snapshots: dict[str, ToolSnapshot] = {}
         self._unflushed_steps = 0

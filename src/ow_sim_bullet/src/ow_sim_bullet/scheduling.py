@@ -71,14 +71,15 @@ class Pacer:
 
 
 class Throttle:
-    """Something republished when its version changes, at most every ``period`` s of wall time.
+    """Something republished when its version changes, at most every ``period`` s of ``clock``.
 
     Args:
-        period: s of wall time.
-        clock: wall clock in s (monotonic).
+        period: s of ``clock``.
+        clock: s; the simulation's own time for what it records (the carved terrain): then
+            what is published, and when, is a function of the run, not of the machine's load.
     """
 
-    def __init__(self, period: float, clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(self, period: float, clock: Callable[[], float]) -> None:
         self.period = period
         self._clock = clock
         self._version: int | None = None

@@ -59,7 +59,7 @@ class SimNode:
             stamp, the model's wrench of that step, N and N m in the tool link frame about its
             COM (zero when no model ran).
         /sim/terrain (ow_msgs/HeightMap, latched): the terrain; republished after carving at
-            most every ``~terrain_publish_period`` s of wall time.
+            most every ``~terrain_publish_period`` s of simulation time.
         /flags/joint_states (ow_msgs/JointStatesFlag): locked joints, with /joint_states.
     Faults (``/faults/parameter_updates``) and PID gains (dynamic_reconfigure): see
     :class:`~ow_sim_bullet.reconfigure_node.SimReconfigure`.
