@@ -488,12 +488,21 @@ def test_a_picture_without_shadows_is_the_robot_over_its_terrain_by_depth_pixel_
     heights[25:35, 10:50] -= 0.03  # a trench
     terrain = HeightMap(heights, 0.05, 0.0, -1.5)
     camera = Camera((1.8, 0.0, GROUND_Z), 2.0, 35.0, -35.0, 200, 150)
+    # The whole lander: its body and the dock (drawn once per camera) behind and before the arm.
+    whole = Camera((0.6, 0.0, 0.0), 3.2, 150.0, -25.0, 200, 150)
     with SceneRenderer() as scene:
         scene.set_terrain(terrain)
-        for joints in (dict(UNSTOWED), dict(SCOOP_BELOW_GROUND)):  # the terrain drawn once
-            scene.set_joints(joints)
-            layered = scene.render(camera, shadow=False)
-            assert np.array_equal(layered, _drawn_together(joints, terrain, camera))
+        for view in (whole, camera):
+            for joints in (dict(UNSTOWED), dict(SCOOP_BELOW_GROUND)):  # the terrain drawn once
+                scene.set_joints(joints)
+                layered = scene.render(view, shadow=False)
+                assert np.array_equal(layered, _drawn_together(joints, terrain, view))
+        # The lander's body, hidden in the robot's client for those, is back for a shadowed one.
+        shadowed = scene.render(whole, shadow=True)
+        with SceneRenderer() as fresh:
+            fresh.set_joints(dict(SCOOP_BELOW_GROUND))
+            fresh.set_terrain(terrain)
+            assert np.array_equal(shadowed, fresh.render(whole, shadow=True))
         scene.set_terrain(None)
         robot_alone = scene.render(camera, shadow=False)
     background = robot_alone[0, 0]

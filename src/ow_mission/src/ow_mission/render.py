@@ -134,14 +134,56 @@ class _TerrainClient:
         pb.disconnect(self.client)
 
 
+def _static_links(body: int, client: int) -> dict[int, tuple[float, ...]]:
+    """The links of ``body`` that no joint moves (the base and what is fixed to it: the lander's
+    body and the sample dock), each with its colour (RGBA)."""
+    static = {-1}
+    for i in range(pb.getNumJoints(body, physicsClientId=client)):
+        info = pb.getJointInfo(body, i, physicsClientId=client)
+        if info[2] == pb.JOINT_FIXED and info[16] in static:
+            static.add(i)
+    colours: dict[int, tuple[float, ...]] = {}
+    for shape in pb.getVisualShapeData(body, physicsClientId=client):
+        if shape[1] in static:
+            colours.setdefault(shape[1], tuple(shape[7]))
+    return colours
+
+
+def _show_links(body: int, client: int, colours: Mapping[int, tuple[float, ...]], on: bool) -> None:
+    """Show or hide (alpha 0: TinyRenderer skips them) the links of ``colours``."""
+    for link, rgba in colours.items():
+        colour = list(rgba) if on else [*rgba[:3], 0.0]
+        pb.changeVisualShape(body, link, rgbaColor=colour, physicsClientId=client)
+
+
+class _StaticClient:
+    """A pybullet client holding the robot with only its static links visible (drawn once per
+    camera: they are the same in every frame)."""
+
+    def __init__(self, urdf_path: Path) -> None:
+        self.client = pb.connect(pb.DIRECT)
+        body = pb.loadURDF(str(urdf_path), useFixedBase=True, physicsClientId=self.client)
+        static = _static_links(body, self.client)
+        moving = {
+            shape[1]: tuple(shape[7])
+            for shape in pb.getVisualShapeData(body, physicsClientId=self.client)
+            if shape[1] not in static
+        }
+        _show_links(body, self.client, moving, on=False)
+
+    def close(self) -> None:
+        pb.disconnect(self.client)
+
+
 class SceneRenderer:
     """The lander (and a terrain) in a pybullet DIRECT client, rendered on demand.
 
-    Without shadows nothing in the picture depends on two bodies at once, so the terrain is
-    drawn once per terrain and camera, in a client of its own, and each frame draws the robot
-    alone and lays it over the terrain by depth: the same pixels as drawing both (a third of
-    the time of a replay frame; the terrain was two thirds of TinyRenderer's work). Shadowed
-    pictures draw both together.
+    Without shadows nothing in the picture depends on two bodies at once, so what does not move
+    is drawn once and each frame draws only the moving links, laid over the rest by depth: the
+    same pixels as drawing everything together. The terrain is drawn once per terrain and camera
+    in a client of its own (it was two thirds of TinyRenderer's work in a replay frame), the
+    lander's body and the dock once per camera in another (a third of the robot's). Shadowed
+    pictures draw everything together.
 
     Args:
         urdf_path: robot description.
@@ -162,8 +204,12 @@ class SceneRenderer:
         self._terrain: HeightMap | None = None
         #: the terrain alone in a client of its own (pictures without shadows)
         self._alone: _TerrainClient | None = None
-        #: (terrain, camera, its picture (h, w, 3), its depth buffer (h, w)) drawn last
+        #: (terrain, camera, its picture (h, w, 3), its depth buffer (h, w)) drawn last, the
+        #: static links included
         self._layer: tuple[HeightMap, Camera, npt.NDArray[np.uint8], DepthArray] | None = None
+        #: the static links alone in a client of their own, and (camera, picture, depth) of them
+        self._statics: _StaticClient | None = None
+        self._static_layer: tuple[Camera, npt.NDArray[np.uint8], DepthArray] | None = None
 
     def __enter__(self) -> SceneRenderer:
         return self
@@ -176,6 +222,9 @@ class SceneRenderer:
         if self._alone is not None:
             self._alone.close()
             self._alone = None
+        if self._statics is not None:
+            self._statics.close()
+            self._statics = None
         if self._client >= 0:
             pb.disconnect(self._client)
             self._client = -1
@@ -207,9 +256,17 @@ class SceneRenderer:
         }
         for index, value in self._pose.items():
             pb.resetJointState(self._body, index, value, physicsClientId=self._client)
+        self._static_colours = _static_links(self._body, self._client)
+        self._statics_shown = True
         if terrain is not None:
             _add_terrain(terrain, self._client)
         self._with_robot = terrain
+
+    def _show_statics(self, on: bool) -> None:
+        """Show or hide the static links in the robot's client."""
+        if self._statics_shown != on:
+            _show_links(self._body, self._client, self._static_colours, on)
+            self._statics_shown = on
 
     def set_terrain(self, terrain: HeightMap | None) -> None:
         """Show ``terrain`` (None: no terrain); the heightfield is rebuilt only when it changed
@@ -233,19 +290,32 @@ class SceneRenderer:
         terrain = self._terrain
         if shadow or terrain is None:
             self._show_with_robot(terrain)
+            self._show_statics(True)
             return _draw(self._client, camera, shadow)[0]
         self._show_with_robot(None)
+        self._show_statics(False)
         robot, robot_depth = _draw(self._client, camera, False)
         layer = self._layer
         if layer is None or layer[0] is not terrain or layer[1] != camera:
             if self._alone is None:
                 self._alone = _TerrainClient()
             self._alone.show(terrain)
-            layer = (terrain, camera, *_draw(self._alone.client, camera, False))
+            ground, ground_depth = _draw(self._alone.client, camera, False)
+            static, static_depth = self._static_picture(camera)
+            layer = (terrain, camera, *_nearer(static, static_depth, ground, ground_depth))
             self._layer = layer
-        _, _, ground, ground_depth = layer
-        nearer = robot_depth < ground_depth  # both depth buffers of the same projection
-        return np.where(nearer[:, :, None], robot, ground)
+        _, _, rest, rest_depth = layer
+        return _nearer(robot, robot_depth, rest, rest_depth)[0]
+
+    def _static_picture(self, camera: Camera) -> tuple[npt.NDArray[np.uint8], DepthArray]:
+        """The static links alone from ``camera``: picture and depth buffer (kept per camera)."""
+        kept = self._static_layer
+        if kept is None or kept[0] != camera:
+            if self._statics is None:
+                self._statics = _StaticClient(self._urdf_path)
+            kept = (camera, *_draw(self._statics.client, camera, False))
+            self._static_layer = kept
+        return kept[1], kept[2]
 
     def picture(
         self,
@@ -323,6 +393,15 @@ def visible_terrain(terrain: HeightMap, camera: Camera, reach: float = 3.0) -> H
             hit = (low - eye[2]) / ray[2] if ray[2] < 0 else longest
             ends.append(eye + ray * min(hit, longest))
     return crop_terrain(terrain, np.vstack([ends, [camera.target]]))
+
+
+def _nearer(
+    a: npt.NDArray[np.uint8], a_depth: DepthArray, b: npt.NDArray[np.uint8], b_depth: DepthArray
+) -> tuple[npt.NDArray[np.uint8], DepthArray]:
+    """Two pictures of the same projection laid over each other by depth: each pixel from the
+    nearer (``a`` where ``a`` is strictly nearer), and the nearer depth."""
+    nearer = a_depth < b_depth
+    return np.where(nearer[:, :, None], a, b), np.where(nearer, a_depth, b_depth)
 
 
 def _draw(client: int, camera: Camera, shadow: bool) -> tuple[npt.NDArray[np.uint8], DepthArray]:
