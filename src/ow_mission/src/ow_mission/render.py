@@ -134,19 +134,22 @@ class _TerrainClient:
         pb.disconnect(self.client)
 
 
-def _static_links(body: int, client: int) -> dict[int, tuple[float, ...]]:
-    """The links of ``body`` that no joint moves (the base and what is fixed to it: the lander's
-    body and the sample dock), each with its colour (RGBA)."""
+def _link_colours(
+    body: int, client: int
+) -> tuple[dict[int, tuple[float, ...]], dict[int, tuple[float, ...]]]:
+    """The colour (RGBA) of each link of ``body`` with visual shapes (the URDF gives each link
+    one): (the links no joint moves: the base and what is fixed to it, the lander's body and
+    the sample dock; the others)."""
     static = {-1}
     for i in range(pb.getNumJoints(body, physicsClientId=client)):
         info = pb.getJointInfo(body, i, physicsClientId=client)
         if info[2] == pb.JOINT_FIXED and info[16] in static:
             static.add(i)
-    colours: dict[int, tuple[float, ...]] = {}
+    fixed: dict[int, tuple[float, ...]] = {}
+    moving: dict[int, tuple[float, ...]] = {}
     for shape in pb.getVisualShapeData(body, physicsClientId=client):
-        if shape[1] in static:
-            colours.setdefault(shape[1], tuple(shape[7]))
-    return colours
+        (fixed if shape[1] in static else moving).setdefault(shape[1], tuple(shape[7]))
+    return fixed, moving
 
 
 def _show_links(body: int, client: int, colours: Mapping[int, tuple[float, ...]], on: bool) -> None:
@@ -156,25 +159,6 @@ def _show_links(body: int, client: int, colours: Mapping[int, tuple[float, ...]]
         pb.changeVisualShape(body, link, rgbaColor=colour, physicsClientId=client)
 
 
-class _StaticClient:
-    """A pybullet client holding the robot with only its static links visible (drawn once per
-    camera: they are the same in every frame)."""
-
-    def __init__(self, urdf_path: Path) -> None:
-        self.client = pb.connect(pb.DIRECT)
-        body = pb.loadURDF(str(urdf_path), useFixedBase=True, physicsClientId=self.client)
-        static = _static_links(body, self.client)
-        moving = {
-            shape[1]: tuple(shape[7])
-            for shape in pb.getVisualShapeData(body, physicsClientId=self.client)
-            if shape[1] not in static
-        }
-        _show_links(body, self.client, moving, on=False)
-
-    def close(self) -> None:
-        pb.disconnect(self.client)
-
-
 class SceneRenderer:
     """The lander (and a terrain) in a pybullet DIRECT client, rendered on demand.
 
@@ -182,8 +166,8 @@ class SceneRenderer:
     is drawn once and each frame draws only the moving links, laid over the rest by depth: the
     same pixels as drawing everything together. The terrain is drawn once per terrain and camera
     in a client of its own (it was two thirds of TinyRenderer's work in a replay frame), the
-    lander's body and the dock once per camera in another (a third of the robot's). Shadowed
-    pictures draw everything together.
+    lander's body and the dock once per camera, with the moving links hidden (a third of the
+    robot's). Shadowed pictures draw everything together.
 
     Args:
         urdf_path: robot description.
@@ -207,8 +191,7 @@ class SceneRenderer:
         #: (terrain, camera, its picture (h, w, 3), its depth buffer (h, w)) drawn last, the
         #: static links included
         self._layer: tuple[HeightMap, Camera, npt.NDArray[np.uint8], DepthArray] | None = None
-        #: the static links alone in a client of their own, and (camera, picture, depth) of them
-        self._statics: _StaticClient | None = None
+        #: (camera, picture, depth) of the static links alone
         self._static_layer: tuple[Camera, npt.NDArray[np.uint8], DepthArray] | None = None
 
     def __enter__(self) -> SceneRenderer:
@@ -222,9 +205,6 @@ class SceneRenderer:
         if self._alone is not None:
             self._alone.close()
             self._alone = None
-        if self._statics is not None:
-            self._statics.close()
-            self._statics = None
         if self._client >= 0:
             pb.disconnect(self._client)
             self._client = -1
@@ -256,7 +236,7 @@ class SceneRenderer:
         }
         for index, value in self._pose.items():
             pb.resetJointState(self._body, index, value, physicsClientId=self._client)
-        self._static_colours = _static_links(self._body, self._client)
+        self._static_colours, self._moving_colours = _link_colours(self._body, self._client)
         self._statics_shown = True
         if terrain is not None:
             _add_terrain(terrain, self._client)
@@ -311,9 +291,11 @@ class SceneRenderer:
         """The static links alone from ``camera``: picture and depth buffer (kept per camera)."""
         kept = self._static_layer
         if kept is None or kept[0] != camera:
-            if self._statics is None:
-                self._statics = _StaticClient(self._urdf_path)
-            kept = (camera, *_draw(self._statics.client, camera, False))
+            self._show_with_robot(None)
+            self._show_statics(True)
+            _show_links(self._body, self._client, self._moving_colours, on=False)
+            kept = (camera, *_draw(self._client, camera, False))
+            _show_links(self._body, self._client, self._moving_colours, on=True)
             self._static_layer = kept
         return kept[1], kept[2]
 
