@@ -136,11 +136,10 @@ class CartesianPlanner:
 
     def prepare(
         self, frame: str, position: FloatArray, rotation: FloatArray | None, base: FloatArray
-    ) -> bool:
+    ) -> None:
         """Work out the random-restart IK of a target ahead of the requests that may need it
         (what :meth:`solve_ik` falls back to), so that none of them pays for it: the answers
-        are the same with or without (see :meth:`_restarted`). True when the target is
-        reachable.
+        are the same with or without (see :meth:`_restarted`).
 
         Args:
             frame: frame to place.
@@ -149,8 +148,7 @@ class CartesianPlanner:
             base: (9,) rad, the configuration of the joints IK does not move.
         """
         target = np.asarray(position, dtype=np.float64)
-        q0 = np.array(base, dtype=np.float64)
-        return not isinstance(self._restarted(frame, target, rotation, q0), IKError)
+        self._restarted(frame, target, rotation, np.array(base, dtype=np.float64))
 
     def _restarted(
         self, frame: str, target: FloatArray, rotation: FloatArray | None, q0: FloatArray

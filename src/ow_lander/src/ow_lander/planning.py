@@ -262,10 +262,10 @@ class ArmPlanner:
 
     def prepare_ik(
         self, frame: str, position: FloatArray, rotation: FloatArray | None, base: FloatArray
-    ) -> bool:
+    ) -> None:
         """Work out ahead the IK that :meth:`solve_ik` may fall back to for a target (see
-        :meth:`CartesianPlanner.prepare`); True when the target is reachable."""
-        return self._cartesian.prepare(frame, position, rotation, base)
+        :meth:`CartesianPlanner.prepare`)."""
+        self._cartesian.prepare(frame, position, rotation, base)
 
     def plan_cartesian(
         self,

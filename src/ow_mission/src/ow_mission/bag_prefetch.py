@@ -51,7 +51,7 @@ class BagPrefetch:
             whatever ``read`` raises for ``bags``.
         """
         self._thread.join()
-        files = list(self.files)
-        if self._messages is None or [Path(b) for b in bags[: len(files)]] != files:
+        done = len(self.files)
+        if self._messages is None or [Path(b) for b in bags[:done]] != self.files:
             return self._read(bags)
-        return merge_messages(self._messages, self._read(bags[len(files) :]))
+        return merge_messages(self._messages, self._read(bags[done:]))
