@@ -109,31 +109,6 @@ def fit_camera(
     )
 
 
-class _TerrainClient:
-    """A pybullet client that holds one terrain as a heightfield, rebuilt when it changes.
-
-    Each rebuild empties the client (``resetSimulation``): a removed heightfield body keeps its
-    collision shape and TinyRenderer's mesh of it until then (pybullet refuses to remove a shape
-    it counts as used), about 9 MB per 126 x 126 terrain, so a replay through the default
-    mission's terrains grew a renderer by hundreds of MB.
-    """
-
-    def __init__(self) -> None:
-        self.client = pb.connect(pb.DIRECT)
-        self.terrain: HeightMap | None = None
-
-    def show(self, terrain: HeightMap) -> None:
-        """Hold ``terrain``; nothing to do when it is the one held."""
-        if terrain is self.terrain:
-            return
-        pb.resetSimulation(physicsClientId=self.client)
-        self.terrain = terrain
-        _add_terrain(terrain, self.client)
-
-    def close(self) -> None:
-        pb.disconnect(self.client)
-
-
 def _link_colours(
     body: int, client: int
 ) -> tuple[dict[int, tuple[float, ...]], dict[int, tuple[float, ...]]]:
@@ -165,9 +140,10 @@ class SceneRenderer:
     Without shadows nothing in the picture depends on two bodies at once, so what does not move
     is drawn once and each frame draws only the moving links, laid over the rest by depth: the
     same pixels as drawing everything together. The terrain is drawn once per terrain and camera
-    in a client of its own (it was two thirds of TinyRenderer's work in a replay frame), the
-    lander's body and the dock once per camera, with the moving links hidden (a third of the
-    robot's). Shadowed pictures draw everything together.
+    (it was two thirds of TinyRenderer's work in a replay frame), the lander's body and the dock
+    once per camera (a third of the robot's), each with everything else hidden. Shadowed
+    pictures draw everything together. One client holds it all: each pybullet client costs
+    about 28 MB, and a report runs three renderers at once.
 
     Args:
         urdf_path: robot description.
@@ -182,12 +158,13 @@ class SceneRenderer:
         self._joints: dict[str, int] = {}
         #: rad by joint index: the pose, kept to pose the robot again when it is reloaded
         self._pose: dict[int, float] = {}
-        #: the terrain beside the robot (shadowed pictures)
-        self._with_robot: HeightMap | None = None
+        #: the terrain the client holds (shown or hidden) and its body (-1: none)
+        self._held: HeightMap | None = None
+        self._ground = -1
+        #: what is shown now: the static links, the moving links, the terrain
+        self._shown = (True, True, False)
         self._load(None)
         self._terrain: HeightMap | None = None
-        #: the terrain alone in a client of its own (pictures without shadows)
-        self._alone: _TerrainClient | None = None
         #: (terrain, camera, its picture (h, w, 3), its depth buffer (h, w)) drawn last, the
         #: static links included
         self._layer: tuple[HeightMap, Camera, npt.NDArray[np.uint8], DepthArray] | None = None
@@ -201,10 +178,7 @@ class SceneRenderer:
         self.close()
 
     def close(self) -> None:
-        """Disconnect the pybullet clients."""
-        if self._alone is not None:
-            self._alone.close()
-            self._alone = None
+        """Disconnect the pybullet client."""
         if self._client >= 0:
             pb.disconnect(self._client)
             self._client = -1
@@ -217,15 +191,18 @@ class SceneRenderer:
                 self._pose[index] = float(value)
                 pb.resetJointState(self._body, index, float(value), physicsClientId=self._client)
 
-    def _show_with_robot(self, terrain: HeightMap | None) -> None:
+    def _hold(self, terrain: HeightMap) -> None:
         """Hold ``terrain`` beside the robot. A change empties the client and loads the robot
-        again in its pose: removing the old heightfield body would leave its shape and mesh
-        in memory (:class:`_TerrainClient`)."""
-        if terrain is not self._with_robot:
+        again in its pose: pybullet keeps a removed heightfield body's collision shape and
+        TinyRenderer's mesh of it until the client is emptied (it refuses to remove a shape it
+        counts as used), about 9 MB per 126 x 126 terrain, and a replay goes through the
+        mission's terrains."""
+        if terrain is not self._held:
             self._load(terrain)
 
     def _load(self, terrain: HeightMap | None) -> None:
-        """Empty the client, then load the robot in its pose and ``terrain`` (None: none)."""
+        """Empty the client, then load the robot in its pose and ``terrain`` (None: none),
+        everything shown."""
         pb.resetSimulation(physicsClientId=self._client)
         self._body = pb.loadURDF(
             str(self._urdf_path), useFixedBase=True, physicsClientId=self._client
@@ -237,16 +214,21 @@ class SceneRenderer:
         for index, value in self._pose.items():
             pb.resetJointState(self._body, index, value, physicsClientId=self._client)
         self._static_colours, self._moving_colours = _link_colours(self._body, self._client)
-        self._statics_shown = True
-        if terrain is not None:
-            _add_terrain(terrain, self._client)
-        self._with_robot = terrain
+        self._ground = -1 if terrain is None else _add_terrain(terrain, self._client)
+        self._held = terrain
+        self._shown = (True, True, terrain is not None)
 
-    def _show_statics(self, on: bool) -> None:
-        """Show or hide the static links in the robot's client."""
-        if self._statics_shown != on:
-            _show_links(self._body, self._client, self._static_colours, on)
-            self._statics_shown = on
+    def _show(self, static: bool, moving: bool, ground: bool) -> None:
+        """Show or hide the static links, the moving links and the terrain held."""
+        shown = self._shown
+        if static != shown[0]:
+            _show_links(self._body, self._client, self._static_colours, static)
+        if moving != shown[1]:
+            _show_links(self._body, self._client, self._moving_colours, moving)
+        if ground != shown[2] and self._ground >= 0:
+            rgba = [*TERRAIN_RGBA[:3], TERRAIN_RGBA[3] if ground else 0.0]
+            pb.changeVisualShape(self._ground, -1, rgbaColor=rgba, physicsClientId=self._client)
+        self._shown = (static, moving, ground and self._ground >= 0)
 
     def set_terrain(self, terrain: HeightMap | None) -> None:
         """Show ``terrain`` (None: no terrain); the heightfield is rebuilt only when it changed
@@ -268,22 +250,20 @@ class SceneRenderer:
         """(height, width, 3) RGB image from ``camera``; ``shadow`` off is faster and, at small
         sizes, free of TinyRenderer's shadow acne (stripes on flat faces)."""
         terrain = self._terrain
+        if terrain is not None:
+            self._hold(terrain)
         if shadow or terrain is None:
-            self._show_with_robot(terrain)
-            self._show_statics(True)
+            self._show(True, True, terrain is not None)
             return _draw(self._client, camera, shadow)[0]
-        self._show_with_robot(None)
-        self._show_statics(False)
-        robot, robot_depth = _draw(self._client, camera, False)
         layer = self._layer
         if layer is None or layer[0] is not terrain or layer[1] != camera:
-            if self._alone is None:
-                self._alone = _TerrainClient()
-            self._alone.show(terrain)
-            ground, ground_depth = _draw(self._alone.client, camera, False)
             static, static_depth = self._static_picture(camera)
+            self._show(False, False, True)
+            ground, ground_depth = _draw(self._client, camera, False)
             layer = (terrain, camera, *_nearer(static, static_depth, ground, ground_depth))
             self._layer = layer
+        self._show(False, True, False)
+        robot, robot_depth = _draw(self._client, camera, False)
         _, _, rest, rest_depth = layer
         return _nearer(robot, robot_depth, rest, rest_depth)[0]
 
@@ -291,11 +271,8 @@ class SceneRenderer:
         """The static links alone from ``camera``: picture and depth buffer (kept per camera)."""
         kept = self._static_layer
         if kept is None or kept[0] != camera:
-            self._show_with_robot(None)
-            self._show_statics(True)
-            _show_links(self._body, self._client, self._moving_colours, on=False)
+            self._show(True, False, False)
             kept = (camera, *_draw(self._client, camera, False))
-            _show_links(self._body, self._client, self._moving_colours, on=True)
             self._static_layer = kept
         return kept[1], kept[2]
 
@@ -413,7 +390,8 @@ def _draw(client: int, camera: Camera, shadow: bool) -> tuple[npt.NDArray[np.uin
     )
 
 
-def _add_terrain(terrain: HeightMap, client: int) -> None:
+def _add_terrain(terrain: HeightMap, client: int) -> int:
+    """Add ``terrain`` to ``client`` as a heightfield body in :data:`TERRAIN_RGBA`; its id."""
     rows, cols = terrain.shape
     heights = terrain.heights
     low, high = float(heights.min()), float(heights.max())
@@ -436,3 +414,4 @@ def _add_terrain(terrain: HeightMap, client: int) -> None:
     pb.changeVisualShape(
         ground, -1, rgbaColor=list(TERRAIN_RGBA), textureUniqueId=-1, physicsClientId=client
     )
+    return int(ground)

@@ -25,6 +25,10 @@ FloatArray = npt.NDArray[np.float64]
 TILE_CELLS = 25
 #: m, how far below the lowest initial height the terrain can be carved.
 FLOOR_DEPTH = 0.5
+#: m, radius of the sphere that stands in for each tile's visual shape. The simulation never
+#: draws; without a visual shape of its own, pybullet gives TinyRenderer a mesh of the heightfield
+#: and a 1024 x 1024 checker texture for every tile body (3.3 MB each, 90 MB for 25 tiles).
+_VISUAL_STAND_IN_RADIUS = 1e-3
 
 
 class BulletTerrain:
@@ -51,6 +55,9 @@ class BulletTerrain:
         self._shapes: dict[tuple[int, int], int] = {}
         self._bodies: dict[tuple[int, int], int] = {}
         self.body_ids: list[int] = []
+        visual = pb.createVisualShape(
+            pb.GEOM_SPHERE, radius=_VISUAL_STAND_IN_RADIUS, physicsClientId=client
+        )
         for r0 in self._row_starts:
             for c0 in self._col_starts:
                 tile = self._tile(heightmap.heights, r0, c0)
@@ -63,6 +70,7 @@ class BulletTerrain:
                 body = pb.createMultiBody(
                     baseMass=0.0,
                     baseCollisionShapeIndex=shape,
+                    baseVisualShapeIndex=visual,
                     basePosition=[x, y, z_centre],
                     physicsClientId=client,
                 )
