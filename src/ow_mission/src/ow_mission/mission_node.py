@@ -29,6 +29,7 @@ from ow_mission.mission import (
     DRAIN_TIMEOUT_S,
     STEPS,
     MissionReport,
+    StackProcess,
     StepResult,
     drain_periods,
     new_run_dir,
@@ -43,6 +44,7 @@ from ow_mission.stack import (
     NodeProcess,
     RosStack,
     call_with_timeout,
+    fork_server,
     peak_memory_mb,
     private_master,
     wait_until,
@@ -98,15 +100,22 @@ class MissionRunner:
         nodes: list[NodeProcess] = []
         prefetch: BagPrefetch | None = None
         try:
-            with private_master(self.run_dir / "ros") as master:
+            params = node_parameters(self.config, self.run_dir)
+            self._drain, processes = drain_periods(params), stack_processes(params, self.config.dig)
+            self._hold = bool(params["arm_services"]["execution"].get("lockstep_hold"))
+            # The nodes are forks of a process that imports them while the master starts.
+            with (
+                fork_server((p.package, p.executable) for p in processes) as server,
+                private_master(self.run_dir / "ros") as master,
+            ):
                 os.environ.update(
                     ROS_MASTER_URI=master.uri,
                     ROS_HOSTNAME="127.0.0.1",
                     ROS_HOME=str(master.log_dir),
                 )
-                stack = RosStack(master)
+                stack = RosStack(master, server)
                 try:
-                    nodes = self._start(stack)
+                    nodes = self._start(stack, processes)
                     self._run_steps()
                 finally:
                     if self._faults is not None:
@@ -134,14 +143,9 @@ class MissionRunner:
         write_report(self.report, prefetch)
         return self.report
 
-    def _start(self, stack: RosStack) -> list[NodeProcess]:
+    def _start(self, stack: RosStack, processes: list[StackProcess]) -> list[NodeProcess]:
         init_node("mission", disable_signals=True)
-        params = node_parameters(self.config, self.run_dir)
-        self._drain = drain_periods(params)
-        self._hold = bool(params["arm_services"]["execution"].get("lockstep_hold"))
-        # Started side by side (the simulation paused), then waited for: each node spends a
-        # second or two importing, and they need nothing from one another to start.
-        processes = stack_processes(params, self.config.dig)
+        # Side by side (the simulation paused), then waited for: none needs another to start.
         nodes = [
             stack.start_node(p.package, p.executable, params=p.params, wait=False)
             for p in processes
