@@ -97,9 +97,22 @@ def test_a_script_that_raises_exits_1_with_its_traceback_in_its_log(tmp_path):
 
 def test_a_log_that_cannot_be_opened_is_an_error_and_the_server_goes_on(script, tmp_path):
     with ForkServer([script]) as server:
-        with pytest.raises(HarnessError, match="could not start"):
-            server.start([str(script), "0"], dict(os.environ), tmp_path / "no" / "dir.log")
-        assert server.start([str(script), "5"], dict(os.environ), tmp_path / "ok.log").wait(30) == 5
+        failed = server.start([str(script), "0"], dict(os.environ), tmp_path / "no" / "dir.log")
+        after = server.start([str(script), "5"], dict(os.environ), tmp_path / "ok.log")
+        with pytest.raises(HarnessError, match=r"could not start .*child.*No such file"):
+            failed.poll()
+        assert after.wait(30) == 5
+
+
+def test_requests_sent_together_are_served_in_order(script, tmp_path):
+    """The caller does not wait for one child before asking for the next."""
+    with ForkServer([script]) as server:
+        children = [
+            server.start([str(script), str(code)], dict(os.environ), tmp_path / f"{code}.log")
+            for code in range(6)
+        ]
+        assert [child.wait(30) for child in children] == list(range(6))
+        assert len({child.pid for child in children}) == 6
 
 
 def test_children_outlive_a_closed_server(script, tmp_path):

@@ -3,9 +3,11 @@
 A Python node spends most of its start-up importing (numpy, rospy and the messages, pybullet,
 pinocchio, OMPL, ProgPy with scipy, pandas and matplotlib), and each holds its own copy of those
 modules' objects: 60 to 200 MB per process. :class:`ForkServer` starts one process that imports
-every module the node scripts import at their top level, once, then forks a child per node. The
+every module the node scripts import at their top level, once, and forks a child per node. The
 children share those pages with the server and with each other until they write to them
-(copy-on-write), and start without importing.
+(copy-on-write), and start without importing. The server imports script by script and serves a
+request as soon as its script's modules are in: the first nodes start up while it imports the
+later ones'.
 
 A child is the node's program as ``rosrun`` runs it: its script run as ``__main__`` with the
 node's argv and environment, in a session of its own (its process group is its pid), stdin
@@ -17,10 +19,11 @@ children and reports their exit codes.
     with ForkServer([script, ...]) as server:
         proc = server.start([script, "__name:=sim"], env, log_path)
 
-Protocol (lines on the server's stdin and stdout): the server prints ``ready`` once it has
-imported; each request is a JSON object (``argv``, ``env``, ``log``) answered by ``pid <pid>``
-(or ``error <message>``); ``exit <pid> <code>`` comes whenever a child has exited (code < 0: the
-signal that killed it). The server exits when its stdin closes; its children run on.
+Protocol (lines on the server's stdin and stdout): the server prints ``ready`` when it runs;
+each request is a JSON object (``argv``, ``env``, ``log``), answered in order by ``pid <pid>``
+(or ``error <message>``); ``exit <pid> <code>`` comes
+whenever a child has exited (code < 0: the signal that killed it). The server exits when its
+stdin closes; its children run on.
 """
 
 from __future__ import annotations
@@ -49,6 +52,8 @@ from ow_mission.errors import HarnessError
 
 #: s between two reaps of exited children while no request comes.
 _REAP_PERIOD_S = 0.02
+#: s of wall time a request may wait for its answer (the script's imports included).
+_START_TIMEOUT_S = 120.0
 #: prctl option that sets the calling thread's name (``comm``, 15 bytes).
 _PR_SET_NAME = 15
 
@@ -79,11 +84,22 @@ def script_imports(script: Path) -> list[str]:
 
 class ForkedProcess:
     """A child of the fork server, as the caller sees it (a :class:`subprocess.Popen`'s
-    ``pid``, ``returncode``, ``poll`` and ``wait``)."""
+    ``pid``, ``returncode``, ``poll`` and ``wait``). It is asked for at once and forked once
+    its script's imports are in the server: :attr:`pid` waits for that."""
 
-    def __init__(self, server: ForkServer, pid: int) -> None:
-        self.pid = pid
+    def __init__(self, server: ForkServer, request: int, script: str) -> None:
         self._server = server
+        self._request = request
+        self._script = script
+
+    @property
+    def pid(self) -> int:
+        """The child's pid, once forked.
+
+        Raises:
+            HarnessError: the server could not fork it.
+        """
+        return self._server.pid_of(self._request, self._script)
 
     @property
     def returncode(self) -> int | None:
@@ -107,12 +123,13 @@ class ForkServer:
     """A process that imports what ``scripts`` import, then forks a child per :meth:`start`.
 
     Args:
-        scripts: node programs (a catkin relay or the script itself) whose imports to preload.
+        scripts: node programs (a catkin relay or the script itself) whose imports to preload,
+            in this order.
         env: the server's environment (default: this process's).
-        timeout_s: s of wall time to wait for its imports.
+        timeout_s: s of wall time to wait for it to run.
 
     Raises:
-        HarnessError: the server exited or was not ready within ``timeout_s``.
+        HarnessError: the server exited or did not answer within ``timeout_s``.
     """
 
     def __init__(
@@ -121,9 +138,8 @@ class ForkServer:
         env: Mapping[str, str] | None = None,
         timeout_s: float = 120.0,
     ) -> None:
-        modules = sorted({m for script in scripts for m in script_imports(Path(script))})
         self._proc = subprocess.Popen(
-            [sys.executable, "-m", "ow_mission.forkserver", *modules],
+            [sys.executable, "-m", "ow_mission.forkserver", *map(str, scripts)],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             env={**(env if env is not None else os.environ), "PYTHONUNBUFFERED": "1"},
@@ -132,6 +148,8 @@ class ForkServer:
         )
         self._lock = threading.Condition()
         self._replies: list[str] = []
+        self._requests = 0  # sent
+        self._answers: list[str] = []  # of the requests, in their order
         self._exits: dict[int, int] = {}
         self._closed = False
         self._reader = threading.Thread(target=self._read, name="forkserver", daemon=True)
@@ -157,6 +175,8 @@ class ForkServer:
                 if kind == "exit":
                     pid, code = rest.split()
                     self._exits[int(pid)] = int(code)
+                elif kind in ("pid", "error"):
+                    self._answers.append(line.strip())
                 else:
                     self._replies.append(line.strip())
                 self._lock.notify_all()
@@ -173,24 +193,41 @@ class ForkServer:
             return self._replies.pop(0)
 
     def start(self, argv: Sequence[str], env: Mapping[str, str], log: Path) -> ForkedProcess:
-        """Fork a child that runs ``argv[0]`` (a Python script) as ``__main__`` with ``argv``
-        and ``env``, its output into ``log``.
+        """Ask for a child that runs ``argv[0]`` (a Python script) as ``__main__`` with
+        ``argv`` and ``env``, its output into ``log``. Returns at once: the server forks it
+        once its script's imports are in (requests are served in order).
 
         Raises:
-            HarnessError: the server could not fork it.
+            HarnessError: the server is not running.
         """
         request = {"argv": list(argv), "env": dict(env), "log": str(log)}
         stdin = self._proc.stdin
-        if stdin is None or self._closed:
-            msg = "the fork server is not running"
-            raise HarnessError(msg)
-        stdin.write(json.dumps(request) + "\n")
-        stdin.flush()
-        kind, _, value = self._reply(30.0).partition(" ")
+        with self._lock:
+            if stdin is None or self._closed:
+                msg = "the fork server is not running"
+                raise HarnessError(msg)
+            stdin.write(json.dumps(request) + "\n")
+            stdin.flush()
+            self._requests += 1
+            return ForkedProcess(self, self._requests - 1, str(argv[0]))
+
+    def pid_of(self, request: int, script: str) -> int:
+        """The pid of the child of request number ``request``, once the server has forked it.
+
+        Raises:
+            HarnessError: the server could not fork it, exited, or did not answer in time.
+        """
+        with self._lock:
+            answered = self._lock.wait_for(
+                lambda: len(self._answers) > request or self._closed, _START_TIMEOUT_S
+            )
+            answer = self._answers[request] if len(self._answers) > request else ""
+        kind, _, value = answer.partition(" ")
         if kind != "pid":
-            msg = f"the fork server could not start {argv[0]}: {value or kind}"
+            why = value or ("it exited" if answered else f"no answer in {_START_TIMEOUT_S} s")
+            msg = f"the fork server could not start {script}: {why}"
             raise HarnessError(msg)
-        return ForkedProcess(self, int(value))
+        return int(value)
 
     def exit_code(self, pid: int) -> int | None:
         """The exit code of child ``pid``, None while it runs."""
@@ -226,45 +263,92 @@ class ForkServer:
 
 
 # ----------------------------------------------------------------------------- the server
-def _serve(modules: Sequence[str]) -> int | None:
+def _serve(scripts: Sequence[str]) -> int | None:
     """The server's loop: returns None in the server when its stdin closes, and the exit code
-    of the node in each child (which then exits as a Python program does)."""
+    of the node in each child (which then exits as a Python program does).
+
+    It answers ``ready`` at once. Requests are served in order, each as soon as its own
+    script's modules are imported (now, if they were not); while none waits, the server
+    imports the next of ``scripts``' modules. The first nodes start while the server imports
+    the later ones'.
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # a terminal's Ctrl-C is the caller's to handle
-    for module in modules:
-        with contextlib.suppress(Exception):  # the node reports its own import error
-            importlib.import_module(module)
-    gc.collect()
-    gc.freeze()  # the collector of a child must not write to every page it shares
     out = sys.stdout
     _say(out, "ready")
-    stdin = sys.stdin.buffer
+    todo = list(dict.fromkeys(scripts))
+    imported: set[str] = set()
+    lines = _Lines(sys.stdin.fileno())
     while True:
         _reap(out)
-        readable, _, _ = select.select([stdin], [], [], _REAP_PERIOD_S)
-        if not readable:
-            continue
-        line = stdin.readline()
-        if not line:
+        waiting = lines.read(0.0 if todo else _REAP_PERIOD_S)
+        if waiting is None:
             return None
-        try:
-            request = json.loads(line)
-            argv, env, log = list(request["argv"]), dict(request["env"]), str(request["log"])
-            log_fd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-        except (ValueError, KeyError, TypeError, OSError) as error:
-            _say(out, f"error {error!r}")
+        if not waiting:
+            if todo:
+                _import_script(todo.pop(0), imported)
             continue
-        # The child says when it leads its own process group: a caller signalling the group
-        # (os.killpg(pid)) as soon as it has the pid must reach it.
-        started_r, started_w = os.pipe()
-        pid = os.fork()
-        if pid == 0:
-            os.close(started_r)
-            return _run_child(argv, env, log_fd, started_w)
-        os.close(log_fd)
-        os.close(started_w)
-        os.read(started_r, 1)  # b"" if it died first
+        for line in waiting:
+            code = _fork(line, imported, out)
+            if code is not None:  # in the child
+                return code
+
+
+class _Lines:
+    """Complete lines from a file descriptor, read without blocking beyond a timeout (a
+    buffered reader would keep lines that select then never reports)."""
+
+    def __init__(self, fd: int) -> None:
+        self._fd = fd
+        self._partial = b""
+
+    def read(self, timeout_s: float) -> list[bytes] | None:
+        """The lines complete within ``timeout_s`` (maybe none); None at end of file."""
+        readable, _, _ = select.select([self._fd], [], [], timeout_s)
+        if not readable:
+            return []
+        data = os.read(self._fd, 1 << 16)
+        if not data:
+            return None
+        *complete, self._partial = (self._partial + data).split(b"\n")
+        return complete
+
+
+def _fork(line: bytes, imported: set[str], out: IO[str]) -> int | None:
+    """Serve one request: None in the server, the node's exit code in the child."""
+    try:
+        request = json.loads(line)
+        argv, env, log = list(request["argv"]), dict(request["env"]), str(request["log"])
+        log_fd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        script = argv[0]
+    except (ValueError, KeyError, TypeError, OSError, IndexError) as error:
+        _say(out, f"error {error!r}")
+        return None
+    _import_script(script, imported)
+    gc.collect()
+    gc.freeze()  # the collector of a child must not write to every page it shares
+    # The child says when it leads its own process group: a caller signalling the group
+    # (os.killpg(pid)) as soon as it has the pid must reach it.
+    started_r, started_w = os.pipe()
+    pid = os.fork()
+    if pid == 0:
         os.close(started_r)
-        _say(out, f"pid {pid}")
+        return _run_child(argv, env, log_fd, started_w)
+    os.close(log_fd)
+    os.close(started_w)
+    os.read(started_r, 1)  # b"" if it died first
+    os.close(started_r)
+    _say(out, f"pid {pid}")
+    return None
+
+
+def _import_script(script: str, imported: set[str]) -> None:
+    """Import what ``script`` imports at its top level, once."""
+    if script in imported:
+        return
+    imported.add(script)
+    for module in script_imports(Path(script)):
+        with contextlib.suppress(Exception):  # the node reports its own import error
+            importlib.import_module(module)
 
 
 def _say(out: IO[str], line: str) -> None:

@@ -75,7 +75,8 @@ def fork_server(programs: Iterable[tuple[str, str]]) -> ForkServer:
 
 class Process(Protocol):
     """What the stack needs of a node's process: a :class:`subprocess.Popen` or a
-    :class:`~ow_mission.forkserver.ForkedProcess`."""
+    :class:`~ow_mission.forkserver.ForkedProcess` (which raises HarnessError, naming the
+    reason, for a node the fork server could not start)."""
 
     @property
     def pid(self) -> int: ...
@@ -96,20 +97,23 @@ def _stop_process_group(proc: Process, timeout_s: float = 10.0) -> None:
 
 def _interrupt_process_group(proc: Process) -> None:
     """SIGINT the process group of a running process: a ROS node shuts down cleanly on it."""
-    if proc.poll() is None:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGINT)
+    # HarnessError: a node the fork server could not start; nothing of it runs.
+    with contextlib.suppress(HarnessError):
+        if proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGINT)
 
 
 def _end_process_group(proc: Process, timeout_s: float) -> None:
     """Wait up to ``timeout_s`` for an interrupted process to exit, then SIGKILL its group."""
-    with contextlib.suppress(subprocess.TimeoutExpired):
-        proc.wait(timeout=timeout_s)
-    # Children a node started (in its group) must not outlive it either.
-    with contextlib.suppress(ProcessLookupError, PermissionError):
-        os.killpg(proc.pid, signal.SIGKILL)
-    with contextlib.suppress(subprocess.TimeoutExpired):
-        proc.wait(timeout=timeout_s)
+    with contextlib.suppress(HarnessError):  # never started (see above)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            proc.wait(timeout=timeout_s)
+        # Children a node started (in its group) must not outlive it either.
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            proc.wait(timeout=timeout_s)
 
 
 def _log_tail(path: Path, lines: int = 40) -> str:
