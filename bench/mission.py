@@ -47,8 +47,7 @@ def _pss_mb(pid: str) -> float:
 
 def node_cpu(mission_pid: int, seen: dict[tuple[int, int], tuple[str, float, float]]) -> float:
     """Update ``seen`` ((pid, start time) -> (node, CPU s, peak resident MB)) from /proc: the
-    mission, every ROS node (a process with ``__name:=``, or forked from the mission's fork
-    server and named by its ``comm``), the fork server, the master and the mission's other
+    mission, every ROS node (a process with ``__name:=``), the master and the mission's other
     children (the report's forked renderers, ``mission_workers``). Returns MB, the sum of their
     PSS now."""
     tick = os.sysconf("SC_CLK_TCK")
@@ -70,13 +69,6 @@ def node_cpu(mission_pid: int, seen: dict[tuple[int, int], tuple[str, float, flo
             names = ["mission"]
         elif any(a.endswith("rosmaster") for a in args[:2]):
             names = ["rosmaster"]
-        elif "ow_mission.forkserver" in args[:3]:
-            # The fork server, and the nodes forked from it: named by their comm.
-            try:
-                comm = Path(f"/proc/{entry}/comm").read_text().strip()
-            except OSError:
-                continue
-            names = ["forkserver" if int(stat[1]) == mission_pid else comm]
         elif not names and int(stat[1]) == mission_pid:
             names = ["mission_workers"]
         if names and not any(a.endswith("rosrun") for a in args[:2]):

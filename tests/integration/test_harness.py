@@ -3,15 +3,12 @@
 import os
 import signal
 import subprocess
-from pathlib import Path
 
 import pytest
 import rospy
 from std_srvs.srv import Empty
 
-from ow_lander.fault_reaction import CHANGES_TOPIC
-from ow_mission.forkserver import ForkedProcess
-from ow_mission.stack import fork_server, node_command
+from ow_mission.stack import node_command
 from ow_mission.testing import HarnessError, RosStack
 
 
@@ -172,28 +169,3 @@ def test_a_modules_publishers_end_with_it_and_a_later_one_gets_its_own_queue(ros
     later = advertise(topic, JointState, queue_size=None)  # the next module's
     assert later.impl.queue_size is None
     unregister_endpoints()
-
-
-def test_a_node_forked_from_the_fork_server_has_its_own_name_and_remappings(ros_master):
-    """rospy, imported by the fork server, read the server's command line: a forked node must
-    take its own name and remappings (``ow_lander.init_node``)."""
-    with fork_server([("ow_faults", "faults")]) as server:
-        stack = RosStack(ros_master, server)
-        try:
-            node = stack.start_node(
-                "ow_faults",
-                "faults",
-                name="forked_faults",
-                args=[f"{CHANGES_TOPIC}:=/forked/changes"],
-                wait_for_services=["/forked_faults/set_parameters"],
-                wait_for_topics=["/forked/changes"],
-            )
-            assert isinstance(node.proc, ForkedProcess)
-            assert Path(f"/proc/{node.proc.pid}/comm").read_text().strip() == "forked_faults"
-            assert CHANGES_TOPIC not in ros_master.published_topics()
-        finally:
-            stack.shutdown()  # before the server closes: it reports the exit codes
-        assert node.proc.returncode == 0
-        assert "/forked_faults/set_parameters" not in ros_master.services()
-        with pytest.raises(ProcessLookupError):
-            os.killpg(node.proc.pid, 0)

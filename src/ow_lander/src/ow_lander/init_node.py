@@ -9,28 +9,15 @@ however little it did (a mission stops its stack in two waves; the tests stop on
 
 from __future__ import annotations
 
-import sys
 from typing import Any
 
-import rosgraph.names
 import rospy
 import rospy.core
-import rospy.names
 from rospy.impl.registration import RegManager, get_registration_listeners
 
 
 def init_node(name: str, **kwargs: Any) -> None:
-    """``rospy.init_node(name, **kwargs)`` with this process's own command line (``argv``,
-    default ``sys.argv``), then :func:`stop_promptly`.
-
-    rospy reads the command line's remappings (``__name:=``, ``a:=b``) and the namespace
-    (``__ns:=``, ``ROS_NAMESPACE``) when it is imported, and ``init_node`` reads them again only
-    when given ``argv``. A node forked from a process that imported rospy before it
-    (:mod:`ow_mission.forkserver`) would otherwise have that process's.
-    """
-    argv = kwargs.setdefault("argv", sys.argv)
-    namespace = rosgraph.names.get_ros_namespace(argv=argv)
-    rospy.names._set_caller_id(rosgraph.names.ns_join(namespace, "unnamed"))
+    """``rospy.init_node(name, **kwargs)``, then :func:`stop_promptly`."""
     rospy.init_node(name, **kwargs)
     stop_promptly()
 

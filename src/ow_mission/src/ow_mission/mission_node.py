@@ -29,7 +29,6 @@ from ow_mission.mission import (
     DRAIN_TIMEOUT_S,
     STEPS,
     MissionReport,
-    StackProcess,
     StepResult,
     drain_periods,
     new_run_dir,
@@ -44,7 +43,6 @@ from ow_mission.stack import (
     NodeProcess,
     RosStack,
     call_with_timeout,
-    fork_server,
     peak_memory_mb,
     private_master,
     wait_until,
@@ -100,22 +98,15 @@ class MissionRunner:
         nodes: list[NodeProcess] = []
         prefetch: BagPrefetch | None = None
         try:
-            params = node_parameters(self.config, self.run_dir)
-            self._drain, processes = drain_periods(params), stack_processes(params, self.config.dig)
-            self._hold = bool(params["arm_services"]["execution"].get("lockstep_hold"))
-            # The nodes are forks of a process that imports them while the master starts.
-            with (
-                fork_server((p.package, p.executable) for p in processes) as server,
-                private_master(self.run_dir / "ros") as master,
-            ):
+            with private_master(self.run_dir / "ros") as master:
                 os.environ.update(
                     ROS_MASTER_URI=master.uri,
                     ROS_HOSTNAME="127.0.0.1",
                     ROS_HOME=str(master.log_dir),
                 )
-                stack = RosStack(master, server)
+                stack = RosStack(master)
                 try:
-                    nodes = self._start(stack, processes)
+                    nodes = self._start(stack)
                     self._run_steps()
                 finally:
                     if self._faults is not None:
@@ -143,9 +134,14 @@ class MissionRunner:
         write_report(self.report, prefetch)
         return self.report
 
-    def _start(self, stack: RosStack, processes: list[StackProcess]) -> list[NodeProcess]:
+    def _start(self, stack: RosStack) -> list[NodeProcess]:
         init_node("mission", disable_signals=True)
-        # Side by side (the simulation paused), then waited for: none needs another to start.
+        params = node_parameters(self.config, self.run_dir)
+        self._drain = drain_periods(params)
+        self._hold = bool(params["arm_services"]["execution"].get("lockstep_hold"))
+        # Started side by side (the simulation paused), then waited for: each node spends a
+        # second or two importing, and they need nothing from one another to start.
+        processes = stack_processes(params, self.config.dig)
         nodes = [
             stack.start_node(p.package, p.executable, params=p.params, wait=False)
             for p in processes

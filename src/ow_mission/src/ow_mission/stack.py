@@ -22,10 +22,9 @@ import xmlrpc.client
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 from ow_mission.errors import HarnessError
-from ow_mission.forkserver import ForkServer
 
 _HARNESS_CALLER = "/ow_testing_harness"
 
@@ -52,68 +51,28 @@ def node_command(package: str, executable: str) -> tuple[str, ...]:
     return ("rosrun", package, executable)
 
 
-def python_program(package: str, executable: str) -> Path | None:
-    """The Python program :func:`node_command` runs for ``executable`` of ``package`` (catkin's
-    relay or the script), None when it is not one (a binary, or ``rosrun`` itself)."""
-    command = node_command(package, executable)
-    if len(command) != 1:
-        return None
-    try:
-        with open(command[0], "rb") as program:
-            first = program.readline()
-    except OSError:
-        return None
-    return Path(command[0]) if first.startswith(b"#!") and b"python" in first else None
-
-
-def fork_server(programs: Iterable[tuple[str, str]]) -> ForkServer:
-    """A :class:`~ow_mission.forkserver.ForkServer` that has imported what the Python programs
-    of ``programs`` ((package, executable), :func:`python_program`) import."""
-    scripts = [python_program(package, executable) for package, executable in programs]
-    return ForkServer(script for script in scripts if script is not None)
-
-
-class Process(Protocol):
-    """What the stack needs of a node's process: a :class:`subprocess.Popen` or a
-    :class:`~ow_mission.forkserver.ForkedProcess` (which raises HarnessError, naming the
-    reason, for a node the fork server could not start)."""
-
-    @property
-    def pid(self) -> int: ...
-
-    @property
-    def returncode(self) -> int | None: ...
-
-    def poll(self) -> int | None: ...
-
-    def wait(self, timeout: float | None = None) -> int: ...
-
-
-def _stop_process_group(proc: Process, timeout_s: float = 10.0) -> None:
+def _stop_process_group(proc: subprocess.Popen[bytes], timeout_s: float = 10.0) -> None:
     """SIGINT the process group (ROS nodes shut down cleanly on it), then SIGKILL it."""
     _interrupt_process_group(proc)
     _end_process_group(proc, timeout_s)
 
 
-def _interrupt_process_group(proc: Process) -> None:
+def _interrupt_process_group(proc: subprocess.Popen[bytes]) -> None:
     """SIGINT the process group of a running process: a ROS node shuts down cleanly on it."""
-    # HarnessError: a node the fork server could not start; nothing of it runs.
-    with contextlib.suppress(HarnessError):
-        if proc.poll() is None:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(proc.pid, signal.SIGINT)
+    if proc.poll() is None:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGINT)
 
 
-def _end_process_group(proc: Process, timeout_s: float) -> None:
+def _end_process_group(proc: subprocess.Popen[bytes], timeout_s: float) -> None:
     """Wait up to ``timeout_s`` for an interrupted process to exit, then SIGKILL its group."""
-    with contextlib.suppress(HarnessError):  # never started (see above)
-        with contextlib.suppress(subprocess.TimeoutExpired):
-            proc.wait(timeout=timeout_s)
-        # Children a node started (in its group) must not outlive it either.
-        with contextlib.suppress(ProcessLookupError, PermissionError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        with contextlib.suppress(subprocess.TimeoutExpired):
-            proc.wait(timeout=timeout_s)
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        proc.wait(timeout=timeout_s)
+    # Children a node started (in its group) must not outlive it either.
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(proc.pid, signal.SIGKILL)
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        proc.wait(timeout=timeout_s)
 
 
 def _log_tail(path: Path, lines: int = 40) -> str:
@@ -281,7 +240,7 @@ class NodeProcess:
     """A node started by :meth:`RosStack.start_node`."""
 
     name: str
-    proc: Process
+    proc: subprocess.Popen[bytes]
     log_path: Path
 
     def alive(self) -> bool:
@@ -304,16 +263,9 @@ class NodeProcess:
 
 @dataclass
 class RosStack:
-    """Real nodes on a private master; stops them all in :meth:`shutdown`.
-
-    Attributes:
-        master: the master the nodes use.
-        forkserver: starts the Python nodes as its forks (:mod:`ow_mission.forkserver`: they
-            share its imported modules); None starts each as a program of its own.
-    """
+    """Real nodes on a private master; stops them all in :meth:`shutdown`."""
 
     master: RosMaster
-    forkserver: ForkServer | None = None
     nodes: list[NodeProcess] = field(default_factory=list)
     params: list[str] = field(default_factory=list)
 
@@ -329,8 +281,8 @@ class RosStack:
         timeout_s: float = 60.0,
         wait: bool = True,
     ) -> NodeProcess:
-        """Start ``rosrun <package> <executable>`` (:func:`node_command`; a fork of
-        :attr:`forkserver` when it is a Python program) and wait until it is ready.
+        """Start ``rosrun <package> <executable>`` (:func:`node_command`) and wait until it is
+        ready.
 
         Args:
             package: ROS package, e.g. ``ow_sim_bullet``.
@@ -356,21 +308,15 @@ class RosStack:
             self.master.set_param(full, value)
             self.params.append(full)
         log_path = self.master.log_dir / f"{node_name}.log"
-        script = None if self.forkserver is None else python_program(package, executable)
-        argv = [*node_command(package, executable), f"__name:={node_name}", *args]
-        proc: Process
-        if self.forkserver is not None and script is not None:
-            proc = self.forkserver.start(argv, self.master.env, log_path)
-        else:
-            with log_path.open("wb") as log:
-                proc = subprocess.Popen(
-                    argv,
-                    env=self.master.env,
-                    stdout=log,
-                    stderr=subprocess.STDOUT,
-                    stdin=subprocess.DEVNULL,
-                    start_new_session=True,
-                )
+        log = log_path.open("wb")
+        proc = subprocess.Popen(
+            [*node_command(package, executable), f"__name:={node_name}", *args],
+            env=self.master.env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+        )
         node = NodeProcess(node_name, proc, log_path)
         self.nodes.append(node)
         if wait:
