@@ -8,7 +8,7 @@ import pytest
 import rospy
 from std_srvs.srv import Empty
 
-from ow_mission.stack import node_command
+from ow_mission.stack import NodeProcess, RosMaster, ignores_signal, node_command
 from ow_mission.testing import HarnessError, RosStack
 
 
@@ -169,3 +169,55 @@ def test_a_modules_publishers_end_with_it_and_a_later_one_gets_its_own_queue(ros
     later = advertise(topic, JointState, queue_size=None)  # the next module's
     assert later.impl.queue_size is None
     unregister_endpoints()
+
+
+IGNORING_SIGINT = """
+import signal, time
+signal.signal(signal.SIGINT, signal.SIG_IGN)
+print("ready", flush=True)
+time.sleep(600)
+"""
+
+
+def test_a_process_that_ignores_sigint_is_told_so_and_stopped_with_sigterm(tmp_path):
+    ignoring = subprocess.Popen(
+        ["python", "-c", IGNORING_SIGINT], stdout=subprocess.PIPE, start_new_session=True
+    )
+    plain = subprocess.Popen(
+        ["python", "-c", "import time; print('ready', flush=True); time.sleep(600)"],
+        stdout=subprocess.PIPE,
+        start_new_session=True,
+    )
+    try:
+        assert ignoring.stdout.readline() == b"ready\n"
+        assert plain.stdout.readline() == b"ready\n"
+        assert ignores_signal(ignoring.pid, signal.SIGINT)
+        assert not ignores_signal(plain.pid, signal.SIGINT)
+        assert not ignores_signal(ignoring.pid, signal.SIGTERM)
+        log = tmp_path / "node.log"
+        # not -SIGKILL after the timeout; the other leaves on SIGINT (KeyboardInterrupt)
+        assert NodeProcess("ignoring", ignoring, log).stop() == -signal.SIGTERM
+        assert NodeProcess("plain", plain, log).stop() == -signal.SIGINT
+    finally:
+        for proc in (ignoring, plain):
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+
+
+def test_a_master_that_inherited_sigint_ignored_is_stopped_without_waiting_for_the_kill(
+    tmp_path,
+):
+    """A mission run in the background (``nohup rosrun ow_mission mission &``) starts its master
+    with SIGINT ignored; rosmaster then never saw the harness's SIGINT and was killed after 10 s."""
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        master = RosMaster(tmp_path)
+        master.start()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    proc = master.proc
+    assert proc is not None
+    assert ignores_signal(proc.pid, signal.SIGINT)
+    master.stop()
+    assert proc.returncode == -signal.SIGTERM

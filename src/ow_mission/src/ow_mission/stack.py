@@ -2,9 +2,10 @@
 
 :func:`private_master` starts ``rosmaster --core`` on a free port of 127.0.0.1; a
 :class:`RosStack` starts nodes on it as ``rosrun`` would (:func:`node_command`), waits for their
-services or topics, and stops them (SIGINT, then SIGKILL of each node's whole process group).
-Each node's output goes to ``<log_dir>/<name>.log``; a node that dies or never becomes ready
-raises :class:`HarnessError` with the end of that log.
+services or topics, and stops them (SIGINT, and SIGTERM for a process that ignores it, then
+SIGKILL of each node's whole process group). Each node's output goes to
+``<log_dir>/<name>.log``; a node that dies or never becomes ready raises :class:`HarnessError`
+with the end of that log.
 """
 
 from __future__ import annotations
@@ -58,10 +59,32 @@ def _stop_process_group(proc: subprocess.Popen[bytes], timeout_s: float = 10.0) 
 
 
 def _interrupt_process_group(proc: subprocess.Popen[bytes]) -> None:
-    """SIGINT the process group of a running process: a ROS node shuts down cleanly on it."""
+    """SIGINT the process group of a running process: a ROS node shuts down cleanly on it.
+
+    A process that ignores SIGINT gets SIGTERM as well. A program inherits an ignored SIGINT
+    from a parent started in the background (a shell gives its background jobs SIGINT
+    ignored: ``nohup ... &``, a campaign's worker, some CI runners). rospy's nodes install a
+    handler of their own whatever they inherited, but ``rosmaster`` (and a node still
+    importing) would never see it: the harness waited its full timeout for the master, 10 s
+    of every mission started that way, before killing it."""
     if proc.poll() is None:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGINT)
+            if ignores_signal(proc.pid, signal.SIGINT):
+                os.killpg(proc.pid, signal.SIGTERM)
+
+
+def ignores_signal(pid: int, signum: int) -> bool:
+    """Whether process ``pid`` ignores signal ``signum`` (``SigIgn`` of ``/proc/<pid>/status``);
+    False for a process that is gone."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return False
+    for line in status.splitlines():
+        if line.startswith("SigIgn:"):
+            return bool(int(line.split()[1], 16) >> (signum - 1) & 1)
+    return False
 
 
 def _end_process_group(proc: subprocess.Popen[bytes], timeout_s: float) -> None:
@@ -252,7 +275,8 @@ class NodeProcess:
         return self.log_path.read_text(errors="replace")
 
     def stop(self, timeout_s: float = 10.0) -> int | None:
-        """Stop the node (SIGINT, then SIGKILL of its process group); return its exit code."""
+        """Stop the node (SIGINT, SIGTERM if it ignores that, then SIGKILL of its process group);
+        return its exit code."""
         _stop_process_group(self.proc, timeout_s)
         return self.proc.returncode
 
