@@ -124,6 +124,9 @@ class MissionRunner:
                     self.report.sim_time_s = max(end, state, self._clock)
                     # The nodes may still be working through the last states (a loaded
                     # machine lost 0.35 s of /power): stop once the recorder has all of them.
+                    # The report's imports while the stack stops (mostly waiting for exits):
+                    # during the steps they held ~50 MB of the stack's peak for a second's work.
+                    threading.Thread(target=preload, name="report_preload", daemon=True).start()
                     self.report.recording_note = wait_recorded(state, self._drain, DRAIN_TIMEOUT_S)
                     # The closed split files are read while the stack stops (docs/mission.md).
                     prefetch = BagPrefetch(self.run_dir / "bags", read_report_messages)
@@ -148,7 +151,6 @@ class MissionRunner:
         ]
         for node, process in zip(nodes, processes, strict=True):
             stack.wait_ready(node, process.services, process.topics)
-        threading.Thread(target=preload, name="report_preload", daemon=True).start()
         rospy.Subscriber("/clock", Clock, self._on_clock, queue_size=10)
         if not self._hold:  # the lockstep says where each step starts and ends
             rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=10)

@@ -394,9 +394,10 @@ def _figures_from_bags(
 def preload() -> None:
     """Import what :func:`write_run_report` imports only when it runs (matplotlib with its Agg
     backend, pandas through ``ow_power.analysis``, the plots, PIL and pybullet for the
-    renders): a mission does it on a thread while its steps run, where the CPU has room, so
-    that about a second of imports leaves the report's critical path. The replay's and the
-    stills' forked processes then have them too."""
+    renders): a mission does it on a thread while its stack stops (mostly waiting for the
+    nodes to exit), so that about a second of imports leaves the report's critical path
+    without adding ~50 MB to the stack's memory during the steps. The replay's and the stills'
+    forked processes then have them too."""
     import matplotlib
 
     matplotlib.use("Agg")
