@@ -1,11 +1,20 @@
 """Messages of the arm services built from the pure types (no master)."""
 
+import io
 import json
 
 import genpy
 import numpy as np
+import pytest
+from geometry_msgs.msg import TransformStamped
+from tf2_msgs.msg import TFMessage
 
-from ow_lander.conversions import guarded_move_result_msg, operation_msg, trajectory_msg
+from ow_lander.conversions import (
+    guarded_move_result_msg,
+    operation_msg,
+    tf_message_stamps,
+    trajectory_msg,
+)
 from ow_lander.execution import ExecutionResult
 from ow_lander.trajectory import PathSegment, time_parameterize
 from ow_msgs.msg import Operation
@@ -58,3 +67,43 @@ def test_guarded_move_result_msg():
     assert (msg.position.x, msg.position.y, msg.position.z) == (1.7, 0.0, -0.15)
     missed = guarded_move_result_msg(ExecutionResult(False, "no ground"), genpy.Time(9))
     assert not missed.success and (missed.position.x, missed.position.z) == (0.0, 0.0)
+
+
+def _tf_bytes(stamps: list[tuple[int, int]], frames: list[str]) -> bytes:
+    msg = TFMessage()
+    for i, ((secs, nsecs), frame) in enumerate(zip(stamps, frames, strict=True)):
+        transform = TransformStamped()
+        transform.header.seq = 7 + i
+        transform.header.stamp = genpy.Time(secs, nsecs)
+        transform.header.frame_id = frame
+        transform.child_frame_id = f"{frame}_child_{'x' * i}"
+        transform.transform.translation.x = 0.1 * i
+        transform.transform.rotation.w = 1.0
+        msg.transforms.append(transform)
+    buffer = io.BytesIO()
+    msg.serialize(buffer)
+    return buffer.getvalue()
+
+
+@pytest.mark.parametrize(
+    ("stamps", "frames"),
+    [
+        ([], []),
+        ([(12, 340_000_000)], ["base_link"]),
+        ([(40, 170_000_001)] * 12, [f"l_link{i}" for i in range(12)]),
+        ([(3, 999_999_999), (1, 0), (4_000_000_000, 5)], ["a", "", "über_link"]),
+    ],
+)
+def test_tf_stamps_are_read_as_genpy_deserialises_them(stamps, frames):
+    data = _tf_bytes(stamps, frames)
+    expected = [t.header.stamp.to_sec() for t in TFMessage().deserialize(data).transforms]
+    assert tf_message_stamps(data) == expected
+    assert tf_message_stamps(memoryview(data)) == expected
+
+
+def test_tf_stamps_of_a_truncated_or_longer_message_raise():
+    data = _tf_bytes([(1, 2), (3, 4)], ["a", "b"])
+    with pytest.raises(ValueError, match="not a tf2_msgs/TFMessage"):
+        tf_message_stamps(data[:-1])
+    with pytest.raises(ValueError, match="end at byte"):
+        tf_message_stamps(data + b"\0")

@@ -11,22 +11,19 @@ from collections.abc import Callable
 
 import numpy as np
 import rospy
-import tf2_ros
 from sensor_msgs.msg import JointState
-from tf2_msgs.msg import TFMessage
 
 from ow_lander import conversions as conv
 from ow_lander.description import (
     ALL_JOINTS,
     ARM_JOINTS,
-    BASE_FRAME,
-    SCOOP_TIP_FRAME,
     STAMP_SLACK_S,
 )
 from ow_lander.errors import PlanningError
 from ow_lander.execution import ExecutionMonitor
 from ow_lander.guard_streams import GuardStreams
 from ow_lander.lockstep_node import LockstepClient, LockstepError
+from ow_lander.tip_sampler_node import TipSampler
 from ow_msgs.msg import GroundDetectorSignal
 from owl_msgs.msg import ArmEndEffectorForceTorque
 
@@ -39,7 +36,7 @@ class ArmObserver:
     """What the arm services observe, on simulation time.
 
     Subscribes: ``/joint_states`` (sensor_msgs/JointState, by joint name); ``/tf``,
-        ``/tf_static``: the scoop tip for the velocity ground detector;
+        ``/tf_static``: the scoop tip for the velocity ground detector (:class:`TipSampler`);
         ``/arm_end_effector_force_torque`` (owl_msgs/ArmEndEffectorForceTorque, N, N m): the
         wrist force and torque for the force detector and the guarded actions.
     Publishes: ``/arm/ground_detector`` (ow_msgs/GroundDetectorSignal) every detector sample.
@@ -53,7 +50,6 @@ class ArmObserver:
         self._state_changed = threading.Condition(threading.Lock())
         self._joints: dict[str, float] = {}
         self._joint_stamp = 0.0
-        self._tf = tf2_ros.BufferCore(rospy.Duration(30.0))
         self._monitor: ExecutionMonitor | None = None
         #: every joint state (s sim, rad by name) since the monitor was set, for its decisions
         self._pending: deque[tuple[float, dict[str, float]]] = deque()
@@ -75,10 +71,9 @@ class ArmObserver:
             queue_size=conv.EVERY_MESSAGE,
             tcp_nodelay=True,
         )
-        rospy.Subscriber(
-            "/tf", TFMessage, self._on_tf, queue_size=conv.EVERY_MESSAGE, tcp_nodelay=True
+        self._tip = TipSampler(
+            self._state_changed, self._streams, lambda: self._monitor, self._publish_signals
         )
-        rospy.Subscriber("/tf_static", TFMessage, self._on_tf, callback_args=True, queue_size=10)
         rospy.Subscriber(
             "/arm_end_effector_force_torque",
             ArmEndEffectorForceTorque,
@@ -117,40 +112,6 @@ class ArmObserver:
             on_sample, joints, (force, torque) = self._on_sample, dict(self._joints), self._wrench
         if on_sample is not None:
             on_sample(msg.header.stamp.to_sec(), joints, force, torque)
-
-    def _on_tf(self, msg: TFMessage, static: bool = False) -> None:
-        """During a guarded descent, sample the scoop tip at each tf stamp the velocity detector
-        wants. tf2 gets the static transforms and those of the wanted stamps only: the
-        simulation sends all its movable frames of a stamp in one message, and a lookup at a
-        stored stamp is that stamp's (30 Hz of a dozen frames the rest of the time, for nothing).
-        """
-        if static:
-            for transform in msg.transforms:
-                self._tf.set_transform_static(transform, "sim")
-            return
-        stamps = {transform.header.stamp for transform in msg.transforms}
-        if stamps:
-            with self._state_changed:
-                self._streams.arrived("tip", max(s.to_sec() for s in stamps))
-        for stamp in sorted(stamps):
-            monitor = self._monitor
-            if monitor is None or not monitor.wants_tip(stamp.to_sec()):
-                continue
-            for transform in msg.transforms:
-                if transform.header.stamp == stamp:
-                    self._tf.set_transform(transform, "sim")
-            try:
-                tip = self._tf.lookup_transform_core(BASE_FRAME, SCOOP_TIP_FRAME, stamp)
-            except tf2_ros.TransformException:
-                continue  # not every link's transform of this stamp has arrived yet
-            p = tip.transform.translation
-            with self._state_changed:
-                contact = monitor.tip_sample(stamp.to_sec(), np.array([p.x, p.y, p.z]))
-                if contact:
-                    self._state_changed.notify_all()
-            self._publish_signals(monitor)
-            if contact:
-                return
 
     def _on_wrist(self, msg: ArmEndEffectorForceTorque) -> None:
         f, m, t = msg.value.force, msg.value.torque, msg.header.stamp.to_sec()

@@ -4,6 +4,7 @@ trajectories, operation markers, guarded-move results). Message classes only: no
 from __future__ import annotations
 
 import json
+import struct
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -27,6 +28,41 @@ if TYPE_CHECKING:  # annotations only: reading messages does not load the model 
 #: many times faster than real time reads hundreds at once. rospy's -1 sets "no limit" even
 #: where another subscriber of the topic in the process set one (None would leave that).
 EVERY_MESSAGE = -1
+
+
+_U32 = struct.Struct("<I")
+_STAMP = struct.Struct("<II")
+#: bytes of a geometry_msgs/Transform: translation (3) and rotation (4) float64.
+_TRANSFORM_BYTES = 7 * 8
+
+
+def tf_message_stamps(data: bytes | memoryview) -> list[float]:
+    """The header stamps (s, as ``genpy.Time.to_sec``) of a serialised tf2_msgs/TFMessage's
+    transforms, in order, read without building the message (a dozen transforms: ~6 us
+    against ~60 us for genpy's deserialisation).
+
+    Raises:
+        ValueError: ``data`` is not a whole TFMessage.
+    """
+    try:
+        (count,) = _U32.unpack_from(data, 0)
+        offset = 4
+        stamps = []
+        for _ in range(count):
+            # Header: seq, stamp (secs, nsecs), frame_id; then child_frame_id, the transform.
+            secs, nsecs = _STAMP.unpack_from(data, offset + 4)
+            stamps.append(float(secs) + float(nsecs) / 1e9)
+            (frame_length,) = _U32.unpack_from(data, offset + 12)
+            offset += 16 + frame_length
+            (child_length,) = _U32.unpack_from(data, offset)
+            offset += 4 + child_length + _TRANSFORM_BYTES
+    except struct.error as error:
+        msg = f"not a tf2_msgs/TFMessage of {len(data)} bytes: {error}"
+        raise ValueError(msg) from error
+    if offset != len(data):
+        msg = f"not a tf2_msgs/TFMessage: {count} transforms end at byte {offset} of {len(data)}"
+        raise ValueError(msg)
+    return stamps
 
 
 def height_map_from_msg(msg: Any) -> HeightMap:
