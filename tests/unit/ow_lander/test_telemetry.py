@@ -3,6 +3,7 @@ the scoop pose against an independent forward kinematics of the URDF."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import xml.etree.ElementTree as ET
 
@@ -15,6 +16,7 @@ from ow_lander.telemetry import (
     PAN_TILT_JOINTS,
     TELEMETRY_ARM_JOINTS,
     RateGate,
+    Telemetry,
     TelemetryBuilder,
     TelemetryConfig,
     TelemetryError,
@@ -108,22 +110,35 @@ def test_accelerations_are_the_finite_difference_of_velocities_between_stamps():
         assert np.allclose(accelerations[k], expected, rtol=1e-9)
 
 
-def test_a_state_without_kinematics_counts_for_the_next_accelerations_all_the_same():
+def test_a_skipped_state_counts_for_the_next_accelerations_all_the_same():
     names = sorted(ALL_JOINTS)
     zeros = [0.0] * len(names)
     rng = np.random.default_rng(4)
-    states = [(10.0 + 0.01 * k, rng.normal(size=len(names)).tolist()) for k in range(6)]
+    states = [(10.0 + 0.01 * k, rng.normal(size=len(names)).tolist()) for k in range(9)]
     every, sparse = TelemetryBuilder(), TelemetryBuilder()
     for k, (stamp, v) in enumerate(states):
         full = every.update(stamp, names, zeros, v, zeros)
-        kinematics = k % 3 == 2
-        kept = sparse.update(stamp, names, zeros, v, zeros, kinematics=kinematics)
-        assert np.array_equal(kept.accelerations, full.accelerations)
-        assert np.array_equal(kept.positions, full.positions)
-        if kinematics:
-            assert np.array_equal(kept.scoop_position, full.scoop_position)
-        else:
-            assert np.isnan(kept.scoop_position).all() and np.isnan(kept.scoop_orientation).all()
+        if k % 3 != 2:
+            sparse.skip(stamp, names, zeros, v, zeros)
+            continue
+        kept = sparse.update(stamp, names, zeros, v, zeros)
+        for field in dataclasses.fields(Telemetry):
+            assert np.array_equal(getattr(kept, field.name), getattr(full, field.name))
+        assert np.any(kept.accelerations != 0.0)
+    # A state without velocities, skipped, leaves no previous one: the next accelerations are 0.
+    sparse.skip(11.0, names, zeros)
+    assert np.all(sparse.update(11.01, names, zeros, states[0][1], zeros).accelerations == 0.0)
+
+
+def test_a_bad_skipped_state_is_refused_and_the_previous_one_kept():
+    names = sorted(ALL_JOINTS)
+    zeros = [0.0] * len(names)
+    builder = TelemetryBuilder()
+    builder.update(10.0, names, zeros, [1.0] * len(names), zeros)
+    with pytest.raises(TelemetryError, match="8 velocity values for 9 joints"):
+        builder.skip(10.01, names, zeros, [5.0] * 8, zeros)
+    t = builder.update(10.02, names, zeros, [2.0] * len(names), zeros)
+    assert np.allclose(t.accelerations, 1.0 / 0.02)
 
 
 @pytest.mark.parametrize("second_stamp", [10.0, 9.5])

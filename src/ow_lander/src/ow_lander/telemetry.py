@@ -181,7 +181,6 @@ class TelemetryBuilder:
         position: Sequence[float],
         velocity: Sequence[float] = (),
         effort: Sequence[float] = (),
-        kinematics: bool = True,
     ) -> Telemetry:
         """The telemetry of one joint state.
 
@@ -191,8 +190,6 @@ class TelemetryBuilder:
             position: rad, one per name.
             velocity: rad/s, one per name, or empty (not measured).
             effort: N m, one per name, or empty.
-            kinematics: compute the scoop's pose; False leaves it NaN, for a state whose
-                telemetry is not published (it still counts for the next accelerations).
 
         Returns:
             The telemetry; the accelerations use the previous call's velocities and stamp.
@@ -201,17 +198,7 @@ class TelemetryBuilder:
             TelemetryError: a lander joint is missing, or an array's length differs from the
                 names' (the state is skipped; the previous one is kept for the difference).
         """
-        if names != self._names and tuple(names) != self._names:
-            self._index(names)
-        n = len(names)
-        for what, values, optional in (
-            ("position", position, False),
-            ("velocity", velocity, True),
-            ("effort", effort, True),
-        ):
-            if len(values) != n and not (optional and len(values) == 0):
-                msg = f"joint state has {len(values)} {what} values for {n} joints"
-                raise TelemetryError(msg)
+        self._check(names, position, velocity, effort)
         q_all = np.asarray(position, dtype=np.float64)
         arm = self._arm
         if len(velocity):
@@ -224,13 +211,8 @@ class TelemetryBuilder:
         torques = (
             np.asarray(effort, dtype=np.float64)[arm] if len(effort) else np.full(len(arm), np.nan)
         )
-        if kinematics:
-            pin.forwardKinematics(self._model, self._data, q_all[self._to_q])
-            X = pin.updateFramePlacement(self._model, self._data, self._scoop)
-            scoop_position = X.translation.copy()
-            scoop_orientation = pin.Quaternion(X.rotation).coeffs().copy()
-        else:
-            scoop_position, scoop_orientation = np.full(3, np.nan), np.full(4, np.nan)
+        pin.forwardKinematics(self._model, self._data, q_all[self._to_q])
+        X = pin.updateFramePlacement(self._model, self._data, self._scoop)
         return Telemetry(
             stamp,
             q_all[arm],
@@ -238,9 +220,51 @@ class TelemetryBuilder:
             accelerations,
             torques,
             q_all[self._pan_tilt],
-            scoop_position,
-            scoop_orientation,
+            X.translation.copy(),
+            pin.Quaternion(X.rotation).coeffs().copy(),
         )
+
+    def skip(
+        self,
+        stamp: float,
+        names: Sequence[str],
+        position: Sequence[float],
+        velocity: Sequence[float] = (),
+        effort: Sequence[float] = (),
+    ) -> None:
+        """Take a joint state whose telemetry is not wanted: it counts for the next
+        accelerations as in :meth:`update`, without the rest of :meth:`update`'s work (a
+        publisher at 10 Hz skips nine states in ten).
+
+        Raises:
+            TelemetryError: as :meth:`update` (the state is skipped, the previous one kept).
+        """
+        self._check(names, position, velocity, effort)
+        if len(velocity):
+            self._previous = (stamp, np.asarray(velocity, dtype=np.float64)[self._arm])
+        else:
+            self._previous = None
+
+    def _check(
+        self,
+        names: Sequence[str],
+        position: Sequence[float],
+        velocity: Sequence[float],
+        effort: Sequence[float],
+    ) -> None:
+        """Index ``names`` if they changed; raise TelemetryError for an array of another length
+        (velocity and effort may be empty)."""
+        if names != self._names and tuple(names) != self._names:
+            self._index(names)
+        n = len(names)
+        for what, values, optional in (
+            ("position", position, False),
+            ("velocity", velocity, True),
+            ("effort", effort, True),
+        ):
+            if len(values) != n and not (optional and len(values) == 0):
+                msg = f"joint state has {len(values)} {what} values for {n} joints"
+                raise TelemetryError(msg)
 
     def _difference(self, stamp: float, velocities: FloatArray) -> FloatArray:
         """rad/s^2, (v - v_previous) / (t - t_previous); 0 without a previous, earlier state."""

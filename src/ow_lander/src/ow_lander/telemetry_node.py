@@ -102,14 +102,15 @@ class TelemetryNode:
         # The kinematics only for the states published (every state counts for accelerations).
         due = self.gate.due(stamp_s)
         try:
-            t = self.builder.update(
-                stamp_s, msg.name, msg.position, msg.velocity, msg.effort, kinematics=due
-            )
+            if not due:
+                self.builder.skip(stamp_s, msg.name, msg.position, msg.velocity, msg.effort)
+                return
+            t = self.builder.update(stamp_s, msg.name, msg.position, msg.velocity, msg.effort)
         except TelemetryError as error:
             # Without a clock rospy's time stands still: each distinct message is logged once.
             rospy.logwarn_throttle_identical(5.0, f"telemetry: joint state skipped: {error}")
             return
-        if not due or not self.gate.passes(stamp_s):
+        if not self.gate.passes(stamp_s):
             return
         header = Header(stamp=stamp)
         self._positions.publish(ArmJointPositions(header, t.positions))
