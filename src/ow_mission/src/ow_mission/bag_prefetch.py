@@ -45,13 +45,15 @@ class BagPrefetch:
     def messages(self, bags: Sequence[Path]) -> TopicMessages:
         """What ``read(bags)`` gives: the prefetched files' messages with those of the rest of
         ``bags``; every file read again when the prefetch failed or ``bags`` does not begin
-        with the files it read.
+        with the files it read. The prefetched messages are handed over, not kept (the caller
+        may free them; a second call reads every file).
 
         Raises:
             whatever ``read`` raises for ``bags``.
         """
         self._thread.join()
         done = len(self.files)
-        if self._messages is None or [Path(b) for b in bags[:done]] != self.files:
+        prefetched, self._messages = self._messages, None
+        if prefetched is None or [Path(b) for b in bags[:done]] != self.files:
             return self._read(bags)
-        return merge_messages(self._messages, self._read(bags[done:]))
+        return merge_messages(prefetched, self._read(bags[done:]))

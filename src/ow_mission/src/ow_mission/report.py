@@ -26,7 +26,7 @@ import traceback
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -37,6 +37,9 @@ from ow_mission.replay import ReplayRendering, start_replay
 from ow_mission.stills import StillsRendering, plan_stills
 from ow_power.bagread import TopicMessages, read_messages
 from ow_power.errors import BagReadError
+
+if TYPE_CHECKING:
+    from ow_power.analysis import Analysis
 
 
 @dataclass
@@ -104,17 +107,14 @@ def read_report_messages(bags: Sequence[Path]) -> TopicMessages:
 
 
 def energies_from_bags(
-    run_dir: Path,
-    document: dict[str, Any],
-    bags: Sequence[Path],
-    messages: TopicMessages,
-    figures: Figures,
+    run_dir: Path, document: dict[str, Any], analysis: Analysis, figures: Figures
 ) -> None:
-    """``power.png``, and each step's energies and peaks from the bags' ``messages`` written
-    into ``document['steps']`` (the same numbers the plot labels)."""
-    from ow_power.analysis import analyze_messages, plot_power
+    """``power.png``, and each step's energies and peaks from the bags' power ``analysis``
+    (:func:`ow_power.analysis.analyze_messages`) written into ``document['steps']`` (the same
+    numbers the plot labels)."""
+    from ow_power.analysis import plot_power
 
-    analysis = analyze_messages(messages, bags)
+    bags = analysis.bags
     labels = plot_power(analysis, run_dir / "power.png", windows=step_windows(document))
     for step, label in zip(document["steps"], labels, strict=True):
         window = analysis_window(analysis, label.start_s, label.end_s)
@@ -343,14 +343,24 @@ def _figures_from_bags(
 ) -> None:
     """The power plot, then the figures of the replay's :class:`Recording`, in the report's
     order. The stills and the replay's frames are rendered by processes of their own from the
-    start, alongside the other figures: this process collects them at the end."""
+    start, alongside the other figures: this process collects them at the end. ``messages``
+    loses its ``/joint_states`` and ``/power`` once the recording and the power analysis are
+    made from them."""
     recording: Recording | None = None
+    analysis: Analysis | None = None
     rendering: ReplayRendering | None = None
     stills: StillsRendering | None = None
 
     def read_recording() -> str | None:
         nonlocal recording
         recording = recording_from_messages(messages, bags)
+        return None
+
+    def analyze() -> str | None:
+        nonlocal analysis
+        from ow_power.analysis import analyze_messages
+
+        analysis = analyze_messages(messages, bags)
         return None
 
     def start(recording: Recording) -> str | None:
@@ -361,14 +371,19 @@ def _figures_from_bags(
 
     early = Figures()  # notes of the work started first, filed in the report's order below
     _attempt(early, "bags", read_recording)
+    _attempt(figures, "power", analyze)
+    # Done with the high-rate topics before the renderers are forked: ~70 MB of the report's
+    # peak for the default mission, which the renderers' copies of this process would keep.
+    from ow_power.analysis import JOINT_STATES_TOPIC, POWER_TOPIC
+
+    for topic in (JOINT_STATES_TOPIC, POWER_TOPIC):
+        messages.pop(topic, None)
     if recording is not None and renders:
         _attempt(early, "replay", functools.partial(start, recording))
     try:
-        _attempt(
-            figures,
-            "power",
-            functools.partial(energies_from_bags, run_dir, document, bags, messages, figures),
-        )
+        if analysis is not None:
+            power = functools.partial(energies_from_bags, run_dir, document, analysis, figures)
+            _attempt(figures, "power", power)
         if recording is None:
             figures.notes.update(early.notes)
             return
