@@ -38,8 +38,8 @@ _TRANSFORM_BYTES = 7 * 8
 
 def tf_message_stamps(data: bytes | memoryview) -> list[float]:
     """The header stamps (s, as ``genpy.Time.to_sec``) of a serialised tf2_msgs/TFMessage's
-    transforms, in order, read without building the message (a dozen transforms: ~6 us
-    against ~60 us for genpy's deserialisation).
+    transforms, in order, read without building the message (twelve transforms: 3.8 us
+    against 45.8 us for genpy's deserialisation).
 
     Raises:
         ValueError: ``data`` is not a whole TFMessage.

@@ -122,11 +122,11 @@ class MissionRunner:
                         end, state = 0.0, -1.0
                     state = state if state >= 0.0 else self._last_joint_stamp()
                     self.report.sim_time_s = max(end, state, self._clock)
-                    # The nodes may still be working through the last states (a loaded
-                    # machine lost 0.35 s of /power): stop once the recorder has all of them.
                     # The report's imports while the stack stops (mostly waiting for exits):
                     # during the steps they held ~50 MB of the stack's peak for a second's work.
                     threading.Thread(target=preload, name="report_preload", daemon=True).start()
+                    # The nodes may still be working through the last states (a loaded
+                    # machine lost 0.35 s of /power): stop once the recorder has all of them.
                     self.report.recording_note = wait_recorded(state, self._drain, DRAIN_TIMEOUT_S)
                     # The closed split files are read while the stack stops (docs/mission.md).
                     prefetch = BagPrefetch(self.run_dir / "bags", read_report_messages)
