@@ -613,8 +613,53 @@ def test_stills_render_in_their_own_process_and_a_failure_names_what_is_missing(
     assert Image.open(good.path).size == (1024, 768)
     bad = Still("still_01", tmp_path / "b" / "01_y.png", 12.0, "")
     bad.path.mkdir(parents=True)  # a directory where the file must go: the child fails
-    with pytest.raises(RuntimeError, match=r"exited with code 1; missing: 01_y.png"):
+    with pytest.raises(RuntimeError, match=r"failed: IsADirectoryError: .*; missing: 01_y.png"):
         StillsRendering([bad], recording, []).finish()
+
+
+def test_the_stills_and_the_replay_in_one_pool_are_the_same_files_and_leave_it_running(
+    run_dir, tmp_path
+):
+    """The report renders both in two processes; the files are those each makes alone, and
+    neither finishing nor cancelling shuts the shared pool down."""
+    from ow_mission.replay import render_pool, start_replay
+    from ow_mission.stills import Still, StillsRendering
+
+    recording = read_recording(sorted((run_dir / "bags").glob("*.bag")))
+    steps = [("unstow", 10.0, 13.0), ("guarded_move", 13.0, 17.0)]
+    kwargs = {"max_frames": 6, "width": 160, "height": 120, "workers": 2}
+    alone = [Still("still_00", tmp_path / "alone" / "00.png", 12.0, "")]
+    shared = [Still("still_00", tmp_path / "shared" / "00.png", 12.0, "")]
+    StillsRendering(alone, recording, [(1.6, 0.0, -0.15)]).finish()
+    make_replay(recording, steps, tmp_path / "alone.gif", **kwargs)
+    with render_pool(2) as pool:
+        stills = StillsRendering(shared, recording, [(1.6, 0.0, -0.15)], pool)
+        rendering = start_replay(recording, steps, tmp_path / "shared.gif", pool=pool, **kwargs)
+        assert stills.finish() == shared
+        assert rendering.finish().frames == 6
+        start_replay(recording, steps, tmp_path / "c.gif", pool=pool, **kwargs).cancel()
+        assert pool.submit(sum, [1, 2]).result() == 3  # still open
+    assert shared[0].path.read_bytes() == alone[0].path.read_bytes()
+    assert (tmp_path / "shared.gif").read_bytes() == (tmp_path / "alone.gif").read_bytes()
+    assert not (tmp_path / "c.gif").exists()
+
+
+def test_the_report_renders_in_its_pool_of_two(tmp_path, monkeypatch):
+    """One pool of RENDER_PROCESSES for the stills and the replay's parts, shut down after."""
+    pools = []
+    make_pool = report_module.render_pool
+
+    def recording_pool(workers):
+        pools.append((workers, make_pool(workers)))
+        return pools[-1][1]
+
+    monkeypatch.setattr(report_module, "render_pool", recording_pool)
+    _write_bags(tmp_path / "bags")
+    document = write_run_report(tmp_path, _document(), renders=True)
+    assert "replay" in document["figures"] and "still_00" in document["figures"]
+    assert [workers for workers, _ in pools] == [report_module.RENDER_PROCESSES] == [2]
+    with pytest.raises(RuntimeError, match="after shutdown"):
+        pools[0][1].submit(sum, [1])
 
 
 @pytest.mark.parametrize("collecting", [True, False])

@@ -181,6 +181,18 @@ def default_signals() -> None:
         signal.signal(signum, signal.SIG_DFL)
 
 
+def render_pool(workers: int) -> ProcessPoolExecutor:
+    """``workers`` forked processes for renders (the replay's parts, the stills), each taking
+    the default action on SIGINT and SIGTERM. fork: they start at once, without importing
+    anything; a dead one fails its future (BrokenProcessPool) where a multiprocessing.Pool
+    hangs. Each task makes its own pybullet client, so a process holds one at a time."""
+    return ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=multiprocessing.get_context("fork"),
+        initializer=default_signals,
+    )
+
+
 class ReplayRendering:
     """A replay whose frames are being rendered (:func:`start_replay`): :meth:`finish` collects
     them and writes the GIF, :meth:`cancel` drops them. As a context manager, it cancels what
@@ -195,9 +207,10 @@ class ReplayRendering:
         on_frame: Callable[[int, int], None] | None,
         wall0: float,
         cpu0: float,
+        pool: ProcessPoolExecutor | None = None,
     ) -> None:
         """Start rendering ``parts``: one is rendered in this process by :meth:`finish`, more
-        by as many forked workers, starting now."""
+        by ``pool``'s processes (None: as many forked for them alone), starting now."""
         self.path = path
         self._fps = fps
         self._sim_span_s = sim_span_s
@@ -206,15 +219,10 @@ class ReplayRendering:
         self._wall0 = wall0
         self._state = "started"
         self._executor: ProcessPoolExecutor | None = None
+        self._own_executor = pool is None
         self._futures: list[Future[_Rendered]] = []
         if len(parts) > 1:
-            # fork: the workers start at once, with the frames, without importing anything. A
-            # dead worker fails its future (BrokenProcessPool) where a multiprocessing.Pool hangs.
-            self._executor = ProcessPoolExecutor(
-                max_workers=len(parts),
-                mp_context=multiprocessing.get_context("fork"),
-                initializer=default_signals,
-            )
+            self._executor = render_pool(len(parts)) if pool is None else pool
             self._futures = [self._executor.submit(_render_part, part) for part in parts]
         self._started_s = time.monotonic()
         self._start_wall_s = self._started_s - wall0
@@ -232,7 +240,9 @@ class ReplayRendering:
         if self._state != "started":
             return
         self._state = "cancelled"
-        if self._executor is not None:
+        for future in self._futures:
+            future.cancel()
+        if self._executor is not None and self._own_executor:
             self._executor.shutdown(wait=False, cancel_futures=True)
 
     def finish(self) -> ReplayResult:
@@ -264,7 +274,11 @@ class ReplayRendering:
                         if on_frame is not None:
                             on_frame(i, count)
             finally:
-                self._executor.shutdown(wait=True, cancel_futures=True)
+                if self._own_executor:
+                    self._executor.shutdown(wait=True, cancel_futures=True)
+                else:
+                    for future in self._futures:
+                        future.cancel()
             workers_cpu_s = sum(r.cpu_s for r in rendered)
         images = [image for r in rendered for image in r.images]
         ready_s = max(r.done_s for r in rendered)
@@ -308,6 +322,7 @@ def start_replay(
     title: str = "",
     on_frame: Callable[[int, int], None] | None = None,
     workers: int = 2,
+    pool: ProcessPoolExecutor | None = None,
 ) -> ReplayRendering:
     """Choose the frames and the camera of the replay of the whole recording, and start
     rendering them; :meth:`ReplayRendering.finish` writes the GIF at ``path``.
@@ -333,6 +348,9 @@ def start_replay(
             workers, once its worker's part has arrived).
         workers: processes rendering the frames; 1 renders them in this process, in ``finish``.
             The workers run only pybullet, numpy and PIL, so the caller may have threads (rospy).
+        pool: with ``workers`` > 1, the processes to render the parts in
+            (:func:`render_pool`, which the caller shuts down; e.g. shared with the stills); None
+            forks ``workers`` for this replay alone.
 
     Raises:
         ReplayError: ``workers`` < 1.
@@ -375,7 +393,7 @@ def start_replay(
         _Part(frames[int(part[0]) : int(part[-1]) + 1], camera, font_file, font_size)
         for part in np.array_split(np.arange(len(frames)), min(workers, len(frames)))
     ]
-    return ReplayRendering(path, fps, t1 - t0, parts, on_frame, wall0, cpu0)
+    return ReplayRendering(path, fps, t1 - t0, parts, on_frame, wall0, cpu0, pool)
 
 
 def make_replay(

@@ -24,6 +24,7 @@ import sys
 import time
 import traceback
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -33,7 +34,7 @@ import numpy as np
 from ow_mission.bag_prefetch import BagPrefetch
 from ow_mission.node_config import stack_parameters
 from ow_mission.recording import Recording, recording_from_messages
-from ow_mission.replay import ReplayRendering, start_replay
+from ow_mission.replay import ReplayRendering, render_pool, start_replay
 from ow_mission.stills import StillsRendering, plan_stills
 from ow_power.bagread import TopicMessages, read_messages
 from ow_power.errors import BagReadError
@@ -51,6 +52,10 @@ class Figures:
     captions: dict[str, str] = field(default_factory=dict)
     notes: dict[str, str] = field(default_factory=dict)
 
+
+#: Processes rendering the stills and the replay, and parts the replay's frames are split into.
+RENDER_PROCESSES = 2
+REPLAY_PARTS = 2
 
 #: Makes one figure from the run directory, the document, the recording and the figures so far;
 #: returns a note when it cannot.
@@ -224,14 +229,19 @@ def guarded_move_figure(
     return None
 
 
-def start_stills(run_dir: Path, document: dict[str, Any], recording: Recording) -> StillsRendering:
+def start_stills(
+    run_dir: Path,
+    document: dict[str, Any],
+    recording: Recording,
+    pool: ProcessPoolExecutor | None = None,
+) -> StillsRendering:
     """Start rendering the stills (1024x768, framed on the whole arm and the trench) at the end
-    of the steps of :data:`ow_mission.stills.STILLS`, from the bags, in a process of their own;
-    :func:`stills_figure` files them."""
+    of the steps of :data:`ow_mission.stills.STILLS`, from the bags, in ``pool`` (None: a
+    process of their own); :func:`stills_figure` files them."""
     config = document["config"]
     ground = document.get("ground_z") or float(config["expected_ground"])
     stills = plan_stills(run_dir / "renders", document["steps"])
-    return StillsRendering(stills, recording, trench_points(config, ground))
+    return StillsRendering(stills, recording, trench_points(config, ground), pool)
 
 
 def stills_figure(rendering: StillsRendering, figures: Figures) -> str | None:
@@ -243,10 +253,13 @@ def stills_figure(rendering: StillsRendering, figures: Figures) -> str | None:
 
 
 def start_replay_figure(
-    run_dir: Path, document: dict[str, Any], recording: Recording
+    run_dir: Path,
+    document: dict[str, Any],
+    recording: Recording,
+    pool: ProcessPoolExecutor | None = None,
 ) -> ReplayRendering:
-    """Start rendering ``replay.gif`` (the whole mission, from the bags) in worker processes;
-    :func:`replay_figure` finishes it."""
+    """Start rendering ``replay.gif`` (the whole mission, from the bags) in two parts, in
+    ``pool`` (None: two processes of its own); :func:`replay_figure` finishes it."""
     config = document["config"]
     ground = document.get("ground_z") or float(config["expected_ground"])
     return start_replay(
@@ -255,6 +268,8 @@ def start_replay_figure(
         run_dir / "replay.gif",
         around=trench_points(config, ground),
         title=str(config.get("name", "mission")),
+        workers=REPLAY_PARTS,
+        pool=pool,
     )
 
 
@@ -342,14 +357,16 @@ def _figures_from_bags(
     renders: bool,
 ) -> None:
     """The power plot, then the figures of the replay's :class:`Recording`, in the report's
-    order. The stills and the replay's frames are rendered by processes of their own from the
-    start, alongside the other figures: this process collects them at the end. ``messages``
+    order. The stills and the replay's two parts are rendered by two forked processes from the
+    start (the stills first: about as long as one part), alongside the other figures: this
+    process collects them at the end. ``messages``
     loses its ``/joint_states`` and ``/power`` once the recording and the power analysis are
     made from them."""
     recording: Recording | None = None
     analysis: Analysis | None = None
     rendering: ReplayRendering | None = None
     stills: StillsRendering | None = None
+    pool: ProcessPoolExecutor | None = None
 
     def read_recording() -> str | None:
         nonlocal recording
@@ -364,9 +381,13 @@ def _figures_from_bags(
         return None
 
     def start(recording: Recording) -> str | None:
-        nonlocal rendering, stills
-        stills = start_stills(run_dir, document, recording)
-        rendering = start_replay_figure(run_dir, document, recording)
+        nonlocal rendering, stills, pool
+        # Two processes, not one for the stills and two for the replay: each holds a pybullet
+        # client with the robot and the terrain (~65-90 MB), and the report's CPU after the
+        # fork is the same on two cores (docs/performance.md, eighth round).
+        pool = render_pool(RENDER_PROCESSES)
+        stills = start_stills(run_dir, document, recording, pool)
+        rendering = start_replay_figure(run_dir, document, recording, pool)
         return None
 
     early = Figures()  # notes of the work started first, filed in the report's order below
@@ -404,6 +425,8 @@ def _figures_from_bags(
             rendering.cancel()
         if stills is not None:
             stills.cancel()
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
 def preload() -> None:

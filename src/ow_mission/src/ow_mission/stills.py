@@ -1,18 +1,23 @@
 """The report's stills (no ROS): the scene at the end of chosen steps, rendered from the bags in
-a forked process while the report makes its other figures (each takes TinyRenderer about a
-second at 1024x768 with shadows: four of them were the report's longest piece of work).
+a forked process while the report makes its other figures (each takes TinyRenderer about half a
+second at 1024x768 with shadows: four of them were the report's longest piece of work). The
+report renders them in the replay's pool of processes (:func:`ow_mission.replay.render_pool`).
 """
 
 from __future__ import annotations
 
-import multiprocessing
 from collections.abc import Iterable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ow_lander.terrain import HeightMap
 from ow_mission.recording import Recording
-from ow_mission.replay import default_signals
+from ow_mission.replay import render_pool
+
+#: What a still shows: the pose (rad by joint name) and the terrain (None: none recorded yet).
+Scene = tuple[dict[str, float], HeightMap | None]
 
 #: Steps after which a still is rendered, and what it shows.
 STILLS: dict[str, str] = {
@@ -58,33 +63,38 @@ def render_stills(
 ) -> None:
     """Render and write each still (PNG), framed on the whole arm and the ``around`` points
     (m, base_link), with one renderer."""
+    _render_scenes([s.path for s in stills], _scenes(stills, recording), list(around))
+
+
+def _scenes(stills: Sequence[Still], recording: Recording) -> list[Scene]:
+    """What each still shows: the pose (rad by joint name) and the terrain at its time."""
+    return [(recording.joints_at(s.t_s), recording.terrain_at(s.t_s)) for s in stills]
+
+
+def _render_scenes(
+    paths: Sequence[Path], scenes: Sequence[Scene], around: list[tuple[float, float, float]]
+) -> None:
     from PIL import Image
 
     from ow_mission.render import SceneRenderer
 
-    points = list(around)
     with SceneRenderer() as scene:
-        for still in stills:
-            t = still.t_s
-            image = scene.picture(recording.joints_at(t), recording.terrain_at(t), around=points)
-            Image.fromarray(image).save(still.path)
-
-
-def _render_in_child(
-    stills: Sequence[Still], recording: Recording, around: list[tuple[float, float, float]]
-) -> None:
-    default_signals()
-    render_stills(stills, recording, around)
+        for path, (joints, terrain) in zip(paths, scenes, strict=True):
+            image = scene.picture(joints, terrain, around=around)
+            Image.fromarray(image).save(path)
 
 
 class StillsRendering:
-    """Stills being rendered by a forked process (fork: it starts at once, with the recording,
-    without importing anything); :meth:`finish` waits for them.
+    """Stills being rendered by a forked process while the caller goes on; :meth:`finish`
+    waits for them.
 
     Args:
         stills: what to render (:func:`plan_stills`).
         recording: the run's joint states and terrains.
         around: points the camera must see besides the arm (m, base_link).
+        pool: the forked processes to render them in (:func:`ow_mission.replay.render_pool`,
+            shared with the replay's frames: one pybullet client fewer than a process of their
+            own); None starts a process for them alone.
     """
 
     def __init__(
@@ -92,32 +102,46 @@ class StillsRendering:
         stills: Sequence[Still],
         recording: Recording,
         around: Iterable[tuple[float, float, float]],
+        pool: ProcessPoolExecutor | None = None,
     ) -> None:
         self.stills = list(stills)
         for still in self.stills:
             still.path.parent.mkdir(parents=True, exist_ok=True)
-        self._process = multiprocessing.get_context("fork").Process(
-            target=_render_in_child, args=(self.stills, recording, list(around)), daemon=True
+        self._own_pool = pool is None
+        self._pool = render_pool(1) if pool is None else pool
+        # The scenes are taken from the recording here, so the task sent is a few poses and
+        # terrains, not the recording.
+        self._future = self._pool.submit(
+            _render_scenes,
+            [s.path for s in self.stills],
+            _scenes(self.stills, recording),
+            list(around),
         )
-        self._process.start()
 
     def finish(self) -> list[Still]:
-        """Wait for the process; the stills it wrote.
+        """Wait for the stills; the stills written.
 
         Raises:
-            RuntimeError: the process failed (its traceback is on stderr) or wrote no file.
+            RuntimeError: rendering them failed (the error is named) or wrote no file.
         """
-        self._process.join()
+        failure = ""
+        try:
+            self._future.result()
+        except Exception as error:  # the worker's error, or its process died
+            failure = f"rendering them failed: {type(error).__name__}: {error}"
+        finally:
+            if self._own_pool:
+                self._pool.shutdown(wait=True)
         missing = [s.path.name for s in self.stills if not s.path.is_file()]
-        if self._process.exitcode != 0 or missing:
-            msg = f"the process rendering them exited with code {self._process.exitcode}" + (
+        if failure or missing:
+            msg = (failure or "rendering them wrote no file") + (
                 f"; missing: {', '.join(missing)}" if missing else ""
             )
             raise RuntimeError(msg)
         return self.stills
 
     def cancel(self) -> None:
-        """Stop the process if it still runs."""
-        if self._process.is_alive():
-            self._process.terminate()
-            self._process.join()
+        """Drop the stills if they have not started; a process of their own exits once done."""
+        self._future.cancel()
+        if self._own_pool:
+            self._pool.shutdown(wait=False, cancel_futures=True)
