@@ -129,26 +129,37 @@ def test_the_mission_runs_the_monitors_as_components_of_one_node(tmp_path):
     config = MissionConfig.from_dict({"node_params": {"telemetry": {"rate_hz": 0}}})
     params = node_parameters(config, tmp_path)
     processes = stack_processes(params, "circular")
-    assert [p.executable for p in processes] == [
-        "record",
-        "sim",
-        "arm_services",
-        "faults",
-        "monitors",
-    ]
+    assert [p.executable for p in processes] == ["record", "sim", "arm_services", "monitors"]
     # Every node of the stack runs: on its own or as a component.
     assert {p.executable for p in processes[:-1]} | set(MONITORS) == set(PARSERS)
     monitors = processes[-1]
     assert monitors.package == "ow_mission"
-    # Each component's parameters in the node's namespace of its name (the detector has none).
-    assert monitors.params == {c: params[c] for c in ("power", "battery", "telemetry", "viz")}
+    # Each component's parameters in the node's namespace of its name (the detector has none);
+    # the fault server asked for.
+    assert monitors.params == {
+        **{c: params[c] for c in ("power", "battery", "telemetry", "viz", "faults")},
+        "serve_faults": True,
+    }
     assert monitors.params["telemetry"]["rate_hz"] == 0
+    assert set(monitors.services) == {"/faults/set_parameters"}
     assert set(monitors.topics) == {
         "/power",
         "/battery_state_of_charge",
         "/robot_description",
         "/arm_joint_positions",
         "/system_faults_status",
+        "/faults/parameter_updates",
     }
     assert "/arm/dig_circular" in processes[2].services
     assert "/arm/dig_linear" not in processes[2].services
+
+
+def test_faults_injected_from_the_start_go_to_the_monitors_fault_server(tmp_path):
+    from ow_mission.mission import node_parameters, stack_processes
+    from ow_mission.mission_config import MissionConfig
+
+    injected = {"ant_pan_joint_locked_failure": True}
+    config = MissionConfig.from_dict({"node_params": {"faults": injected}})
+    monitors = stack_processes(node_parameters(config, tmp_path), "linear")[-1]
+    assert monitors.params["serve_faults"] is True
+    assert monitors.params["faults"]["ant_pan_joint_locked_failure"] is True

@@ -18,7 +18,7 @@ from ow_lander.description import STAMP_SLACK_S
 from ow_mission.bag_prefetch import BagPrefetch
 from ow_mission.fault_schedule import AppliedFault
 from ow_mission.mission_config import MissionConfig
-from ow_mission.node_config import STACK_NODES, stack_parameters
+from ow_mission.node_config import SERVE_FAULTS, STACK_NODES, stack_parameters
 from ow_power.config import BATTERY_TOPICS, TELEMETRY_TOPICS
 
 
@@ -396,8 +396,9 @@ def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str,
 
 
 #: The stack's nodes the mission runs as components of one node, ``ow_mission monitors``: each
-#: stream is then received once for all of them, and one Python process starts instead of five.
-MONITORS = ("power", "battery", "telemetry", "viz", "detector")
+#: stream is then received once for all of them, and one Python process starts instead of six
+#: (the fault server is one, ~30 MB, for a few requests a mission).
+MONITORS = ("power", "battery", "telemetry", "viz", "detector", "faults")
 
 #: What shows a node of the stack is ready: (services it offers, topics it publishes).
 READY: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
@@ -439,6 +440,8 @@ def stack_processes(params: Mapping[str, dict[str, Any]], dig: str) -> list[Stac
     for node in STACK_NODES:
         ready_services, ready_topics = ready[node.executable]
         if node.executable in MONITORS:
+            if node.executable == "faults":
+                monitors[SERVE_FAULTS] = True
             if params[node.executable]:
                 monitors[node.executable] = params[node.executable]
             services, topics = services + ready_services, topics + ready_topics

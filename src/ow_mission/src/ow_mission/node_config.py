@@ -39,6 +39,9 @@ from ow_viz.config import CONFIG_FILE as VIZ_YAML
 
 #: The faults server's launch-time parameters (``ow_faults/config/faults.yaml``).
 FAULTS_YAML = FAULTS_CONFIG_DIR / "faults.yaml"
+#: Parameter of the ``monitors`` node asking it to serve ``/faults`` (the ``faults`` node as one
+#: of its components, with that node's parameters in its ``~faults``).
+SERVE_FAULTS = "serve_faults"
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,72 @@
+"""``rosrun ow_mission monitors _serve_faults:=true``: the ``/faults`` server as a component of the
+monitors (as the mission runs it), on a real master: the ``faults`` node's services, topics and
+launch-time parameters, and its refusals."""
+
+from __future__ import annotations
+
+import pytest
+import rospy
+from dynamic_reconfigure import DynamicReconfigureCallbackException
+from dynamic_reconfigure.client import Client
+from dynamic_reconfigure.encoding import decode_config
+
+from ow_lander.fault_reaction import CHANGES_TOPIC
+from ow_mission.stack import HarnessError
+from ow_msgs.msg import FaultChange
+
+
+@pytest.fixture(scope="module")
+def stack(ros_stack):
+    ros_stack.start_node(
+        "ow_mission",
+        "monitors",
+        params={"serve_faults": True, "faults": {"ant_pan_joint_locked_failure": True}},
+        wait_for_services=["/faults/set_parameters"],
+        wait_for_topics=["/faults/parameter_updates", "/system_faults_status"],
+    )
+    ros_stack.client = Client("/faults", timeout=30)
+    return ros_stack
+
+
+def test_the_faults_injected_at_launch_are_served_under_faults(stack):
+    config = stack.client.get_configuration(timeout=10)
+    assert config["ant_pan_joint_locked_failure"] is True
+    assert config["ant_tilt_joint_locked_failure"] is False
+    assert rospy.get_param("/faults/ant_pan_joint_locked_failure") is True
+    first = rospy.wait_for_message(CHANGES_TOPIC, FaultChange, timeout=10)  # latched
+    assert decode_config(first.config)["ant_pan_joint_locked_failure"] is True
+
+
+def test_a_change_is_published_and_a_bad_one_refused_naming_it(stack):
+    stack.client.update_configuration({"ant_tilt_joint_locked_failure": True})
+    try:
+        change = rospy.wait_for_message(CHANGES_TOPIC, FaultChange, timeout=10)
+        assert change.version >= 1
+        assert decode_config(change.config)["ant_tilt_joint_locked_failure"] is True
+        with pytest.raises(DynamicReconfigureCallbackException) as error:
+            stack.client.update_configuration({"high_power_draw": 500.0})
+        assert "high_power_draw = 500.0 W is outside [1, 360] W" in str(error.value.__context__)
+        assert stack.client.get_configuration(timeout=10)["high_power_draw"] == 1.0
+    finally:
+        stack.client.update_configuration({"ant_tilt_joint_locked_failure": False})
+
+
+@pytest.mark.parametrize(
+    ("params", "named"),
+    [
+        ({"serve_faults": True, "faults": {"no_such_fault": True}}, "no_such_fault"),
+        ({"faults": {"ant_pan_joint_locked_failure": True}}, "serve_faults"),
+        ({"serve_faults": "yes"}, "serve_faults"),
+    ],
+)
+def test_a_bad_fault_server_parameter_stops_the_node_naming_it(ros_stack, params, named):
+    # A name of its own each: the parameters of an earlier one stay on the master.
+    with pytest.raises(HarnessError, match=named):
+        ros_stack.start_node(
+            "ow_mission",
+            "monitors",
+            name=f"monitors_bad_{len(ros_stack.nodes)}",
+            params=params,
+            wait_for_topics=["/never"],
+            timeout_s=30.0,
+        )
