@@ -2,6 +2,7 @@
 
 import os
 import signal
+import socket
 import subprocess
 
 import pytest
@@ -221,3 +222,42 @@ def test_a_master_that_inherited_sigint_ignored_is_stopped_without_waiting_for_t
     assert ignores_signal(proc.pid, signal.SIGINT)
     master.stop()
     assert proc.returncode == -signal.SIGTERM
+
+
+def test_a_master_in_process_serves_other_processes_and_stops(tmp_path):
+    """The mission's master runs on threads of its own process: a node in another process
+    registers with it, the parameter server answers, and once stopped nothing listens."""
+    master = RosMaster(tmp_path, in_process=True)
+    master.start()
+    try:
+        assert master.proc is None
+        master.set_param("/answer", 42)
+        got = subprocess.run(
+            ["rosparam", "get", "/answer"],
+            env=master.env,
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=True,
+        )
+        assert got.stdout.strip() == "42"
+        stack = RosStack(master)
+        try:
+            stack.start_node("ow_faults", "faults", wait_for_services=["/faults/set_parameters"])
+            assert "/faults/parameter_updates" in master.published_topics()
+        finally:
+            stack.shutdown()
+    finally:
+        master.stop()
+    with pytest.raises(OSError):
+        master.call("getSystemState")
+
+
+def test_a_master_in_process_on_a_taken_port_fails_naming_it(tmp_path):
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        master = RosMaster(tmp_path, port=port, in_process=True)
+        with pytest.raises(HarnessError, match=f"rosmaster on port {port} could not start"):
+            master.start(timeout_s=10.0)

@@ -98,7 +98,8 @@ class MissionRunner:
         nodes: list[NodeProcess] = []
         prefetch: BagPrefetch | None = None
         try:
-            with private_master(self.run_dir / "ros") as master:
+            # The master on threads of this process: ~40 MB less than a process of its own.
+            with private_master(self.run_dir / "ros", in_process=True) as master:
                 os.environ.update(
                     ROS_MASTER_URI=master.uri,
                     ROS_HOSTNAME="127.0.0.1",
