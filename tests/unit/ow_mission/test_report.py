@@ -684,3 +684,34 @@ def test_the_report_pauses_the_cyclic_collector_and_leaves_it_as_it_was(
         assert gc.isenabled() is collecting
     finally:
         (gc.enable if was else gc.disable)()
+
+
+def test_a_render_process_gives_its_free_heap_back():
+    """What a closed pybullet client leaves is free heap that plain free() keeps while a later
+    block pins the heap's top; release_free_memory returns those pages to the system."""
+    import ctypes
+
+    from ow_mission.replay import release_free_memory
+
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+    except OSError:
+        pytest.skip("no glibc here")
+    libc.malloc.restype = ctypes.c_void_p
+    libc.free.argtypes = [ctypes.c_void_p]
+
+    def rss_mb() -> float:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+        raise AssertionError("no VmRSS")
+
+    blocks = [libc.malloc(4096) for _ in range(20_000)]  # ~80 MB, below mmap's threshold
+    for block in blocks:
+        ctypes.memset(block, 1, 4096)
+    for block in blocks[:-1]:
+        libc.free(block)
+    held = rss_mb()
+    release_free_memory()
+    assert rss_mb() < held - 50.0
+    libc.free(blocks[-1])

@@ -14,7 +14,7 @@ from typing import Any
 
 from ow_lander.terrain import HeightMap
 from ow_mission.recording import Recording
-from ow_mission.replay import render_pool
+from ow_mission.replay import release_free_memory, render_pool
 
 #: What a still shows: the pose (rad by joint name) and the terrain (None: none recorded yet).
 Scene = tuple[dict[str, float], HeightMap | None]
@@ -82,6 +82,7 @@ def _render_scenes(
         for path, (joints, terrain) in zip(paths, scenes, strict=True):
             image = scene.picture(joints, terrain, around=around)
             Image.fromarray(image).save(path)
+    release_free_memory()
 
 
 class StillsRendering:
