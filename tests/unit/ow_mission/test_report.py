@@ -638,9 +638,22 @@ def test_the_stills_and_the_replay_in_one_pool_are_the_same_files_and_leave_it_r
         assert stills.finish() == shared
         assert rendering.finish().frames == 6
         start_replay(recording, steps, tmp_path / "c.gif", pool=pool, **kwargs).cancel()
+        # One part: the pool's process renders every frame and writes the GIF itself.
+        seen: list[tuple[int, int]] = []
+        whole = start_replay(
+            recording,
+            steps,
+            tmp_path / "whole.gif",
+            pool=pool,
+            on_frame=lambda i, n: seen.append((i, n)),
+            **{**kwargs, "workers": 1},
+        ).finish()
+        assert (whole.frames, whole.width) == (6, 160) and whole.cpu_seconds > 0
+        assert seen == [(i, 6) for i in range(6)]
         assert pool.submit(sum, [1, 2]).result() == 3  # still open
     assert shared[0].path.read_bytes() == alone[0].path.read_bytes()
     assert (tmp_path / "shared.gif").read_bytes() == (tmp_path / "alone.gif").read_bytes()
+    assert (tmp_path / "whole.gif").read_bytes() == (tmp_path / "alone.gif").read_bytes()
     assert not (tmp_path / "c.gif").exists()
 
 

@@ -205,6 +205,40 @@ def render_pool(workers: int) -> ProcessPoolExecutor:
     )
 
 
+@dataclass(frozen=True)
+class _Written:
+    """What a process that rendered the whole replay and wrote its GIF sends back: the frame
+    count and size (px), its CPU time on them (s) and the time.monotonic() when done."""
+
+    frames: int
+    width: int
+    height: int
+    cpu_s: float
+    done_s: float
+
+
+def _write_gif(images: Sequence[Any], path: Path, fps: float) -> None:
+    images[0].save(
+        path,
+        save_all=True,
+        append_images=list(images[1:]),
+        duration=round(1000.0 / fps),
+        loop=0,
+        optimize=False,
+    )
+
+
+def _render_gif(part: _Part, path: Path, fps: float) -> _Written:
+    """Render the whole replay (one part) and write its GIF, in a render process: its frames
+    never travel to the caller (~20 MB for the default mission's 160, twice while pickled)."""
+    rendered = _render_part(part)
+    cpu0 = time.process_time()
+    _write_gif(rendered.images, path, fps)
+    first = rendered.images[0]
+    cpu_s = rendered.cpu_s + time.process_time() - cpu0
+    return _Written(len(rendered.images), first.width, first.height, cpu_s, time.monotonic())
+
+
 class ReplayRendering:
     """A replay whose frames are being rendered (:func:`start_replay`): :meth:`finish` collects
     them and writes the GIF, :meth:`cancel` drops them. As a context manager, it cancels what
@@ -221,8 +255,9 @@ class ReplayRendering:
         cpu0: float,
         pool: ProcessPoolExecutor | None = None,
     ) -> None:
-        """Start rendering ``parts``: one is rendered in this process by :meth:`finish`, more
-        by ``pool``'s processes (None: as many forked for them alone), starting now."""
+        """Start rendering ``parts``, now: more than one in ``pool``'s processes (None: as many
+        forked for them alone), one in ``pool``'s with its GIF written there, else in this
+        process by :meth:`finish`."""
         self.path = path
         self._fps = fps
         self._sim_span_s = sim_span_s
@@ -233,7 +268,11 @@ class ReplayRendering:
         self._executor: ProcessPoolExecutor | None = None
         self._own_executor = pool is None
         self._futures: list[Future[_Rendered]] = []
-        if len(parts) > 1:
+        self._written: Future[_Written] | None = None
+        if len(parts) == 1 and pool is not None:
+            self._executor = pool
+            self._written = pool.submit(_render_gif, parts[0], path, fps)
+        elif len(parts) > 1:
             self._executor = render_pool(len(parts)) if pool is None else pool
             self._futures = [self._executor.submit(_render_part, part) for part in parts]
         self._started_s = time.monotonic()
@@ -254,6 +293,8 @@ class ReplayRendering:
         self._state = "cancelled"
         for future in self._futures:
             future.cancel()
+        if self._written is not None:
+            self._written.cancel()
         if self._executor is not None and self._own_executor:
             self._executor.shutdown(wait=False, cancel_futures=True)
 
@@ -270,6 +311,8 @@ class ReplayRendering:
         called_s, cpu0 = time.monotonic(), time.process_time()
         count = sum(len(part.frames) for part in self._parts)
         on_frame = self._on_frame
+        if self._written is not None:
+            return self._finish_written(self._written, called_s, cpu0, count)
         workers_cpu_s = 0.0  # with one process, the rendering is in this process's CPU time
         if self._executor is None:
             rendering_from_s = called_s
@@ -294,14 +337,7 @@ class ReplayRendering:
             workers_cpu_s = sum(r.cpu_s for r in rendered)
         images = [image for r in rendered for image in r.images]
         ready_s = max(r.done_s for r in rendered)
-        images[0].save(
-            self.path,
-            save_all=True,
-            append_images=images[1:],
-            duration=round(1000.0 / self._fps),
-            loop=0,
-            optimize=False,
-        )
+        _write_gif(images, self.path, self._fps)
         # The replay's own time: choosing the frames, rendering them, collecting and writing
         # them; not the caller's time between start and finish with nothing rendering or with
         # the frames ready.
@@ -318,6 +354,30 @@ class ReplayRendering:
             images[0].height,
             seconds,
             self._start_cpu_s + (time.process_time() - cpu0) + workers_cpu_s,
+            self._sim_span_s,
+        )
+
+    def _finish_written(
+        self, future: Future[_Written], called_s: float, cpu0: float, count: int
+    ) -> ReplayResult:
+        """:meth:`finish` of a replay a render process wrote."""
+        written = future.result()
+        if self._on_frame is not None:
+            for i in range(count):
+                self._on_frame(i, count)
+        seconds = (
+            self._start_wall_s
+            + (written.done_s - self._started_s)
+            + (time.monotonic() - max(called_s, written.done_s))
+        )
+        return ReplayResult(
+            self.path,
+            written.frames,
+            self._fps,
+            written.width,
+            written.height,
+            seconds,
+            self._start_cpu_s + (time.process_time() - cpu0) + written.cpu_s,
             self._sim_span_s,
         )
 
@@ -360,9 +420,10 @@ def start_replay(
             workers, once its worker's part has arrived).
         workers: processes rendering the frames; 1 renders them in this process, in ``finish``.
             The workers run only pybullet, numpy and PIL, so the caller may have threads (rospy).
-        pool: with ``workers`` > 1, the processes to render the parts in
-            (:func:`render_pool`, which the caller shuts down; e.g. shared with the stills); None
-            forks ``workers`` for this replay alone.
+        pool: the processes to render the parts in (:func:`render_pool`, which the caller
+            shuts down; e.g. shared with the stills); with ``workers`` = 1 the process renders
+            every frame and writes the GIF itself. None forks ``workers`` for this replay alone
+            when it is > 1.
 
     Raises:
         ReplayError: ``workers`` < 1.

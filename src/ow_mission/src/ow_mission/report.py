@@ -53,9 +53,9 @@ class Figures:
     notes: dict[str, str] = field(default_factory=dict)
 
 
-#: Processes rendering the stills and the replay, and parts the replay's frames are split into.
+#: Processes rendering the stills and the replay: the stills in one, the replay in the other,
+#: which writes its GIF too (its frames never come to this process).
 RENDER_PROCESSES = 2
-REPLAY_PARTS = 2
 
 #: Makes one figure from the run directory, the document, the recording and the figures so far;
 #: returns a note when it cannot.
@@ -258,8 +258,9 @@ def start_replay_figure(
     recording: Recording,
     pool: ProcessPoolExecutor | None = None,
 ) -> ReplayRendering:
-    """Start rendering ``replay.gif`` (the whole mission, from the bags) in two parts, in
-    ``pool`` (None: two processes of its own); :func:`replay_figure` finishes it."""
+    """Start rendering ``replay.gif`` (the whole mission, from the bags): in one of ``pool``'s
+    processes, which writes the GIF too (None: in two processes of its own, the GIF written
+    here); :func:`replay_figure` finishes it."""
     config = document["config"]
     ground = document.get("ground_z") or float(config["expected_ground"])
     return start_replay(
@@ -268,7 +269,7 @@ def start_replay_figure(
         run_dir / "replay.gif",
         around=trench_points(config, ground),
         title=str(config.get("name", "mission")),
-        workers=REPLAY_PARTS,
+        workers=1 if pool is not None else 2,
         pool=pool,
     )
 
@@ -357,11 +358,10 @@ def _figures_from_bags(
     renders: bool,
 ) -> None:
     """The power plot, then the figures of the replay's :class:`Recording`, in the report's
-    order. The stills and the replay's two parts are rendered by two forked processes from the
-    start (the stills first: about as long as one part), alongside the other figures: this
-    process collects them at the end. ``messages``
-    loses its ``/joint_states`` and ``/power`` once the recording and the power analysis are
-    made from them."""
+    order. The stills and the replay are rendered by two forked processes from the start (about
+    2 and 2.5 CPU-s), alongside the other figures: this process collects them at the end.
+    ``messages`` loses its ``/joint_states`` and ``/power`` once the recording and the power
+    analysis are made from them."""
     recording: Recording | None = None
     analysis: Analysis | None = None
     rendering: ReplayRendering | None = None
