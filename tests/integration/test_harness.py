@@ -4,7 +4,6 @@ import os
 import signal
 import socket
 import subprocess
-from pathlib import Path
 
 import pytest
 import rospy
@@ -262,23 +261,3 @@ def test_a_master_in_process_on_a_taken_port_fails_naming_it(tmp_path):
         master = RosMaster(tmp_path, port=port, in_process=True)
         with pytest.raises(HarnessError, match=f"rosmaster on port {port} could not start"):
             master.start(timeout_s=10.0)
-
-
-@pytest.mark.parametrize(("preset", "expected"), [(None, "2"), ("4", "4")])
-def test_nodes_run_with_two_malloc_arenas_unless_the_caller_says(
-    tmp_path, monkeypatch, preset, expected
-):
-    if preset is None:
-        monkeypatch.delenv("MALLOC_ARENA_MAX", raising=False)
-    else:
-        monkeypatch.setenv("MALLOC_ARENA_MAX", preset)
-    master = RosMaster(tmp_path, in_process=True)
-    master.start()
-    stack = RosStack(master)
-    try:
-        node = stack.start_node("ow_faults", "faults", wait_for_services=["/faults/set_parameters"])
-        environ = (Path("/proc") / str(node.proc.pid) / "environ").read_bytes().split(b"\0")
-        assert f"MALLOC_ARENA_MAX={expected}".encode() in environ
-    finally:
-        stack.shutdown()
-        master.stop()

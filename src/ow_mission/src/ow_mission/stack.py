@@ -28,8 +28,6 @@ from typing import Any
 from ow_mission.errors import HarnessError
 
 _HARNESS_CALLER = "/ow_testing_harness"
-#: glibc malloc arenas of each node the harness starts (``MALLOC_ARENA_MAX``).
-NODE_MALLOC_ARENAS = 2
 
 
 def free_port() -> int:
@@ -143,11 +141,6 @@ class RosMaster:
             PYTHONUNBUFFERED="1",
         )
         env.pop("ROS_IP", None)
-        # glibc gives each thread that allocates an arena of its own (up to 8 per core), and a
-        # rospy node has a thread per connection: two arenas took 10-20 MB of PSS off the
-        # stack's nodes, the recorder and the arm services most (docs/performance.md). A value
-        # the caller set wins.
-        env.setdefault("MALLOC_ARENA_MAX", str(NODE_MALLOC_ARENAS))
         return env
 
     def start(self, timeout_s: float = 20.0) -> None:
