@@ -255,6 +255,16 @@ def test_trench_profile_along_and_across(depth, worked):
     assert np.allclose(profile.along_after[profile.along_m <= -0.05], GROUND_Z)
 
 
+@pytest.mark.parametrize(("found", "ground"), [(None, GROUND_Z), (-0.21, -0.21)])
+def test_the_cameras_frame_the_trench_at_the_ground_found_or_else_the_configured(found, ground):
+    points = np.array(report_module.framed_trench({"config": CONFIG, "ground_z": found}))
+    # Its floor below the requested depth and the bottom grind, its top 5 cm above the ground.
+    assert sorted(set(points[:, 2])) == pytest.approx([ground - 0.15, ground + 0.05])
+    g = TrenchGeometry.from_config(CONFIG)
+    along = (points[:, :2] - g.start) @ g.direction
+    assert sorted(set(np.round(along, 9))) == pytest.approx([-0.1, g.length + 0.1])
+
+
 def test_read_recording_gives_first_and_last_terrain_and_joint_states(run_dir):
     recording = read_recording(sorted((run_dir / "bags").glob("*.bag")))
     assert len(recording.terrains) == 2

@@ -85,6 +85,14 @@ def trench_points(config: Mapping[str, Any], ground_z: float) -> list[tuple[floa
     return points
 
 
+def framed_trench(document: Mapping[str, Any]) -> list[tuple[float, float, float]]:
+    """:func:`trench_points` of ``report.json``'s trench: at the ground the mission found, or
+    at the configured one when it found none."""
+    config = document["config"]
+    ground = document.get("ground_z") or float(config["expected_ground"])
+    return trench_points(config, ground)
+
+
 def _attempt(figures: Figures, role: str, make: Callable[[], str | None]) -> None:
     """Run ``make`` (it returns a note, or None when the figure was written); a figure that
     fails must never cost the user the rest of the report."""
@@ -238,10 +246,8 @@ def start_stills(
     """Start rendering the stills (1024x768, framed on the whole arm and the trench) at the end
     of the steps of :data:`ow_mission.stills.STILLS`, from the bags, in ``pool`` (None: a
     process of their own); :func:`stills_figure` files them."""
-    config = document["config"]
-    ground = document.get("ground_z") or float(config["expected_ground"])
     stills = plan_stills(run_dir / "renders", document["steps"])
-    return StillsRendering(stills, recording, trench_points(config, ground), pool)
+    return StillsRendering(stills, recording, framed_trench(document), pool)
 
 
 def stills_figure(rendering: StillsRendering, figures: Figures) -> str | None:
@@ -261,14 +267,12 @@ def start_replay_figure(
     """Start rendering ``replay.gif`` (the whole mission, from the bags): in one of ``pool``'s
     processes, which writes the GIF too (None: in two processes of its own, the GIF written
     here); :func:`replay_figure` finishes it."""
-    config = document["config"]
-    ground = document.get("ground_z") or float(config["expected_ground"])
     return start_replay(
         recording,
         step_windows(document),
         run_dir / "replay.gif",
-        around=trench_points(config, ground),
-        title=str(config.get("name", "mission")),
+        around=framed_trench(document),
+        title=str(document["config"].get("name", "mission")),
         workers=1 if pool is not None else 2,
         pool=pool,
     )
