@@ -122,17 +122,16 @@ def test_a_topic_is_behind_until_it_has_a_message_within_its_period_of_the_end()
     assert topics_behind({}, end, periods) == {}
 
 
-def test_the_mission_runs_the_monitors_as_components_of_one_node_and_records_itself(tmp_path):
-    from ow_mission.mission import IN_MISSION, MONITORS, node_parameters, stack_processes
+def test_the_mission_runs_the_monitors_as_components_of_one_node(tmp_path):
+    from ow_mission.mission import MONITORS, node_parameters, stack_processes
     from ow_mission.mission_config import MissionConfig
 
     config = MissionConfig.from_dict({"node_params": {"telemetry": {"rate_hz": 0}}})
     params = node_parameters(config, tmp_path)
     processes = stack_processes(params, "circular")
-    assert [p.executable for p in processes] == ["sim", "arm_services", "monitors"]
-    # Every node of the stack runs: on its own, as a component, or in the mission's process.
-    assert IN_MISSION == ("record",)
-    assert {p.executable for p in processes[:-1]} | set(MONITORS) | set(IN_MISSION) == set(PARSERS)
+    assert [p.executable for p in processes] == ["record", "sim", "arm_services", "monitors"]
+    # Every node of the stack runs: on its own or as a component.
+    assert {p.executable for p in processes[:-1]} | set(MONITORS) == set(PARSERS)
     monitors = processes[-1]
     assert monitors.package == "ow_mission"
     # Each component's parameters in the node's namespace of its name (the detector has none);
@@ -151,8 +150,8 @@ def test_the_mission_runs_the_monitors_as_components_of_one_node_and_records_its
         "/system_faults_status",
         "/faults/parameter_updates",
     }
-    assert "/arm/dig_circular" in processes[1].services
-    assert "/arm/dig_linear" not in processes[1].services
+    assert "/arm/dig_circular" in processes[2].services
+    assert "/arm/dig_linear" not in processes[2].services
 
 
 def test_faults_injected_from_the_start_go_to_the_monitors_fault_server(tmp_path):

@@ -11,23 +11,12 @@ from typing import Any
 import rospy
 from dynamic_reconfigure import DynamicReconfigureCallbackException
 from dynamic_reconfigure.client import Client
-from dynamic_reconfigure.msg import Config, ConfigDescription
 from rosgraph_msgs.msg import Clock
 
 from ow_lander.fault_reaction import APPLIED_TOPIC, CHANGES_TOPIC
 from ow_lander.lockstep_node import LockstepClient, LockstepError, wait_until_held
 from ow_mission.fault_schedule import AppliedFault, ScheduledFault, ScheduleTimer
 from ow_msgs.msg import FaultChange, FaultChangeApplied
-
-#: What it subscribes to (the ``/faults`` client's two topics too), with the message classes (a
-#: recorder in the same node subscribes to them typed: :mod:`ow_power.hosted_record_node`).
-SUBSCRIBES: dict[str, Any] = {
-    CHANGES_TOPIC: FaultChange,
-    APPLIED_TOPIC: FaultChangeApplied,
-    "/clock": Clock,
-    "/faults/parameter_updates": Config,
-    "/faults/parameter_descriptions": ConfigDescription,
-}
 
 #: s of wall time to wait for the ``/faults`` server when the runner starts.
 FAULTS_SERVER_TIMEOUT_S = 10.0

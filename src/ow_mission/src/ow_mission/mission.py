@@ -399,13 +399,10 @@ def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str,
 #: stream is then received once for all of them, and one Python process starts instead of six
 #: (the fault server is one, ~30 MB, for a few requests a mission).
 MONITORS = ("power", "battery", "telemetry", "viz", "detector", "faults")
-#: The stack's nodes the mission's own process runs: the recorder
-#: (:class:`ow_power.hosted_record_node.HostedRecorder`, with the record node's parameters),
-#: one Python process (~40 MB) fewer during the steps; the mission stops it after every node.
-IN_MISSION = ("record",)
 
 #: What shows a node of the stack is ready: (services it offers, topics it publishes).
 READY: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "record": ((), ()),
     "power": ((), ("/power",)),
     "battery": ((), ("/battery_state_of_charge",)),
     "sim": (("/sim/resume",), ("/joint_states",)),
@@ -433,17 +430,14 @@ def stack_processes(params: Mapping[str, dict[str, Any]], dig: str) -> list[Stac
     """The mission's processes, in start order, from the nodes' parameters
     (:func:`node_parameters`): every node of :data:`STACK_NODES` on its own, but those of
     :data:`MONITORS`, which are components of one ``monitors`` node, each with its parameters
-    in that node's namespace of its name, and those of :data:`IN_MISSION`. The arm services
-    are ready once they offer the services of the mission's steps (``dig``: "linear" or
-    "circular")."""
+    in that node's namespace of its name. The arm services are ready once they offer the
+    services of the mission's steps (``dig``: "linear" or "circular")."""
     ready = {**READY, "arm_services": (tuple(s.service.format(dig=dig) for s in STEPS), ())}
     processes = []
     monitors: dict[str, Any] = {}
     services: tuple[str, ...] = ()
     topics: tuple[str, ...] = ()
     for node in STACK_NODES:
-        if node.executable in IN_MISSION:
-            continue
         ready_services, ready_topics = ready[node.executable]
         if node.executable in MONITORS:
             if node.executable == "faults":

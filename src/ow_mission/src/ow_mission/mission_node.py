@@ -15,11 +15,12 @@ from pathlib import Path
 from typing import Any
 
 import rospy
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
 
 import ow_msgs.srv
 from ow_lander.init_node import init_node
 from ow_lander.lockstep_node import LockstepError, wait_until_held
-from ow_mission import fault_schedule_node, sim_watch_node
 from ow_mission.action_client_node import ActionStepClient
 from ow_mission.bag_prefetch import BagPrefetch
 from ow_mission.errors import ConfigError
@@ -37,7 +38,6 @@ from ow_mission.mission import (
 )
 from ow_mission.mission_config import USAGE, MissionConfig, config_from_argv
 from ow_mission.report import preload, read_report_messages
-from ow_mission.sim_watch_node import SimWatch
 from ow_mission.stack import (
     HarnessError,
     NodeProcess,
@@ -48,9 +48,6 @@ from ow_mission.stack import (
     wait_until,
 )
 from ow_mission.stack_client_node import sim_clock, stands_at, wait_recorded
-from ow_power.errors import ConfigError as RecorderConfigError
-from ow_power.errors import RecorderError
-from ow_power.hosted_record_node import HostedRecorder
 
 
 class MissionRunner:
@@ -66,12 +63,31 @@ class MissionRunner:
         self.config = config
         self.run_dir = new_run_dir(config, workspace)
         self.report = MissionReport(config, self.run_dir)
-        self._sim: SimWatch | None = None
-        self._recorder: HostedRecorder | None = None
+        self._clock = self._joint_stamp = 0.0  # s (sim), the newest received
+        self._lock = threading.Lock()
         self._actions = ActionStepClient(config.dig) if config.interface == "actions" else None
         self._faults: FaultScheduleRunner | None = None
         self._drain: dict[str, float] = {}
         self._hold = False  # the stack holds the simulation between steps (lockstep)
+
+    # ------------------------------------------------------------------------- ROS callbacks
+    def _on_clock(self, msg: Any) -> None:
+        self._clock = msg.clock.to_sec()
+
+    def _on_joints(self, msg: Any) -> None:
+        with self._lock:
+            self._joint_stamp = msg.header.stamp.to_sec()
+
+    def _last_joint_stamp(self, quiet_s: float = 0.05, limit_s: float = 2.0) -> float:
+        """s, the last /joint_states stamp once none came for ``quiet_s`` (wall): a paused sim's."""
+        deadline = time.monotonic() + limit_s
+        while True:
+            with self._lock:
+                stamp = self._joint_stamp
+            time.sleep(quiet_s)
+            with self._lock:
+                if self._joint_stamp == stamp or time.monotonic() > deadline:
+                    return self._joint_stamp
 
     # --------------------------------------------------------------------------------- run
     def run(self) -> MissionReport:
@@ -91,29 +107,44 @@ class MissionRunner:
                 )
                 stack = RosStack(master)
                 try:
-                    nodes, sim = self._start(stack)
-                    self._run_steps(sim)
+                    nodes = self._start(stack)
+                    self._run_steps()
                 finally:
-                    prefetch = self._stop(stack, nodes)
+                    if self._faults is not None:
+                        self._faults.stop()
+                        self.report.fault_schedule = self._faults.results()
+                    self.report.peak_memory_mb = peak_memory_mb(node.proc.pid for node in nodes)
+                    # Nothing more happens: stopping the nodes lets the simulation step on
+                    # (a lockstep client leaving), and a loaded run recorded one step more.
+                    sim_clock("pause", between_steps=True)
+                    try:  # where the lockstep holds it (its last /clock may be on its way)
+                        end, state = stands_at(5.0) if self._hold else (self._clock, -1.0)
+                    except LockstepError:
+                        end, state = 0.0, -1.0
+                    state = state if state >= 0.0 else self._last_joint_stamp()
+                    self.report.sim_time_s = max(end, state, self._clock)
+                    # The report's imports while the stack stops (mostly waiting for exits):
+                    # during the steps they held ~50 MB of the stack's peak for a second's work.
+                    threading.Thread(target=preload, name="report_preload", daemon=True).start()
+                    # The nodes may still be working through the last states (a loaded
+                    # machine lost 0.35 s of /power): stop once the recorder has all of them.
+                    self.report.recording_note = wait_recorded(state, self._drain, DRAIN_TIMEOUT_S)
+                    # The closed split files are read while the stack stops (docs/mission.md).
+                    prefetch = BagPrefetch(self.run_dir / "bags", read_report_messages)
+                    stack.shutdown(last=("record",))  # it closes its bag on SIGINT
         except (HarnessError, ConfigError) as exc:
             self.report.error = str(exc)
         self.report.wall_time_s = time.monotonic() - wall0
         write_report(self.report, prefetch)
         return self.report
 
-    def _start(self, stack: RosStack) -> tuple[list[NodeProcess], SimWatch]:
+    def _start(self, stack: RosStack) -> list[NodeProcess]:
         init_node("mission", disable_signals=True)
         params = node_parameters(self.config, self.run_dir)
         self._drain = drain_periods(params)
         self._hold = bool(params["arm_services"]["execution"].get("lockstep_hold"))
-        # The recorder takes typed what this process takes (one subscription per topic).
-        self._sim = sim = SimWatch(joints=not self._hold)
-        typed = {**sim_watch_node.SUBSCRIBES, **fault_schedule_node.SUBSCRIBES}
-        try:  # in this process (mission.IN_MISSION): one Python process fewer
-            self._recorder = HostedRecorder(params["record"], typed=typed)
-        except (RecorderConfigError, RecorderError) as exc:
-            raise HarnessError(f"the recorder could not start: {exc}") from exc
-        # Side by side (the simulation paused): each spends a second or two importing.
+        # Started side by side (the simulation paused), then waited for: each node spends a
+        # second or two importing, and they need nothing from one another to start.
         processes = stack_processes(params, self.config.dig)
         nodes = [
             stack.start_node(p.package, p.executable, params=p.params, wait=False)
@@ -121,55 +152,21 @@ class MissionRunner:
         ]
         for node, process in zip(nodes, processes, strict=True):
             stack.wait_ready(node, process.services, process.topics)
+        rospy.Subscriber("/clock", Clock, self._on_clock, queue_size=10)
+        if not self._hold:  # the lockstep says where each step starts and ends
+            rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=10)
         self._faults = FaultScheduleRunner(self.config.faults, stack.master.publishers, self._hold)
         # All connected before the first state is published: equal runs record equal messages.
         if not wait_until(lambda: not stack.master.unconnected(), 10.0):
             print("[mission] not every subscription connected within 10 s", flush=True)
-        self._faults.start(sim.clock)  # those due at t = 0 in place; the next one held
+        self._faults.start(self._clock)  # those due at t = 0 in place; the next one held for
         error = sim_clock("resume")  # the sim offers /sim/resume: start its clock
         if error is not None:
             msg = f"could not start the simulation's clock: {error}"
             raise HarnessError(msg)
-        return nodes, sim
+        return nodes
 
-    def _stop(self, stack: RosStack, nodes: list[NodeProcess]) -> BagPrefetch | None:
-        """Stop the stack once the recorder has the last state, then the recorder: the bags."""
-        if self._faults is not None:
-            self._faults.stop()
-            self.report.fault_schedule = self._faults.results()
-        self.report.peak_memory_mb = peak_memory_mb(node.proc.pid for node in nodes)
-        # Nothing more happens: stopping the nodes lets the simulation step on (a lockstep
-        # client leaving), and a loaded run recorded one step more.
-        sim_clock("pause", between_steps=True)
-        clock = 0.0 if self._sim is None else self._sim.clock
-        try:  # where the lockstep holds it (its last /clock may be on its way)
-            end, state = stands_at(5.0) if self._hold else (clock, -1.0)
-        except LockstepError:
-            end, state = 0.0, -1.0
-        if state < 0.0 and self._sim is not None:
-            state = self._sim.last_joint_stamp()
-        self.report.sim_time_s = max(end, state, clock)
-        if self._recorder is None:
-            stack.shutdown()
-            return None
-        # The report's imports while the stack stops (mostly waiting for exits): during the
-        # steps they held ~50 MB of the stack's peak for a second's work.
-        threading.Thread(target=preload, name="report_preload", daemon=True).start()
-        # The nodes may still be working through the last states (a loaded machine lost
-        # 0.35 s of /power): stop once the recorder has all of them.
-        self.report.recording_note = wait_recorded(state, self._drain, DRAIN_TIMEOUT_S)
-        # The closed split files are read while the stack stops (docs/mission.md).
-        prefetch = BagPrefetch(self.run_dir / "bags", read_report_messages)
-        try:
-            stack.shutdown()
-        finally:  # what the nodes published while stopping is recorded too
-            try:
-                self._recorder.close()
-            except RecorderError as exc:
-                self.report.recording_note = f"{self.report.recording_note} {exc}".strip()
-        return prefetch
-
-    def _run_steps(self, sim: SimWatch) -> None:
+    def _run_steps(self) -> None:
         c = self.config
         ground = c.expected_ground
         held = self._held()  # where the lockstep holds the simulation (None: no lockstep)
@@ -182,7 +179,7 @@ class MissionRunner:
             # The simulation runs only during the steps: what the mission does in between
             # (energies, renders) neither adds sim time nor competes with it for the CPU. In the
             # lockstep it stands where the last step ended (docs/determinism.md).
-            result.sim_start_s = sim.last_joint_stamp() if held is None else held
+            result.sim_start_s = self._last_joint_stamp() if held is None else held
             if self._faults is not None:  # faults due at the step's start, before it runs
                 self._faults.step_started(step.name, result.sim_start_s)
             sim_clock("resume", between_steps=True)
@@ -203,7 +200,7 @@ class MissionRunner:
             held = self._held()  # in the lockstep the step ends where it is held
             sim_clock("pause", between_steps=True)
             # Its energies come from the bags' /power over [sim_start_s, sim_end_s] (the report).
-            result.sim_end_s = sim.last_joint_stamp() if held is None else held
+            result.sim_end_s = self._last_joint_stamp() if held is None else held
             if response is not None:
                 result.take_response(response)
             if result.ground_z is not None:

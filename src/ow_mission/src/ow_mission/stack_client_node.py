@@ -14,10 +14,9 @@ from std_srvs.srv import Trigger
 from ow_lander.lockstep_node import STATUS_SERVICE, LockstepError, simulation_status
 from ow_mission.mission import topics_behind
 from ow_msgs.srv import RecorderProgress
-from ow_power.hosted_record_node import RECORD_NAMESPACE
 
-#: The recorder's progress service (in the mission's process, as the record node's ``~progress``).
-PROGRESS_SERVICE = f"{RECORD_NAMESPACE}/progress"
+#: The recorder's progress service (ow_power record node, ``~progress``).
+PROGRESS_SERVICE = "/record/progress"
 #: s (wall) between two questions to the recorder.
 POLL_S = 0.01
 

@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import io
 import json
 import os
 import signal
 import sys
 import threading
-from collections.abc import Mapping
 from pathlib import Path
 from types import FrameType
 from typing import Any
@@ -65,30 +63,15 @@ class RecorderNode:
             ``~topics`` (list of str), ``~split_duration_s`` (float, s, default 60, 0 = off),
             ``~split_size_mb`` (float, MB, default 100, 0 = off), ``~compression``
             (``none`` | ``bz2``), ``~queue_size`` (int, messages per topic, default 1000).
-
-    Args:
-        config: what to record, and how.
-        directory: where the bags go.
-        namespace: of ``status`` and ``progress``: ``~`` (this node's) in the record node; a
-            node hosting the recorder gives one of its own (:mod:`ow_power.hosted_record_node`).
-        typed: recorded topics subscribed to with their message class instead of
-            ``rospy.AnyMsg``: those a node hosting the recorder takes itself.
     """
 
-    def __init__(
-        self,
-        config: RecorderConfig,
-        directory: Path,
-        namespace: str = "~",
-        typed: Mapping[str, Any] | None = None,
-    ) -> None:
+    def __init__(self, config: RecorderConfig, directory: Path) -> None:
         """Subscribe to the topics; the first message creates the first file.
 
         Raises:
             RecorderError: the bag directory cannot be created.
         """
-        prefix = namespace if namespace.endswith(("~", "/")) else f"{namespace}/"
-        self._status = rospy.Publisher(f"{prefix}status", String, queue_size=1, latch=True)
+        self._status = rospy.Publisher("~status", String, queue_size=1, latch=True)
         self._messages = 0
         self._progress: dict[str, tuple[int, int]] = {}  # topic -> (newest ns, messages)
         self._bags = SplitBagWriter(
@@ -102,16 +85,14 @@ class RecorderNode:
         self._subscribers = [
             rospy.Subscriber(
                 topic,
-                (typed or {}).get(topic, rospy.AnyMsg),
+                rospy.AnyMsg,
                 self._on_message,
                 callback_args=topic,
                 queue_size=config.queue_size,
             )
             for topic in config.topics
         ]
-        self._progress_service = rospy.Service(
-            f"{prefix}progress", RecorderProgress, self._on_progress
-        )
+        self._progress_service = rospy.Service("~progress", RecorderProgress, self._on_progress)
 
     @property
     def run_name(self) -> str:
@@ -121,9 +102,8 @@ class RecorderNode:
     def _on_message(self, msg: Any, topic: str) -> None:
         header = msg._connection_header
         msgdef = header["message_definition"]
-        data = msg._buff if isinstance(msg, rospy.AnyMsg) else _wire(msg)
         # The clock is read only for a message without a stamp (a Time object per message).
-        stamp_ns = record_time_ns(msgdef, data, 0) or rospy.get_rostime().to_nsec()
+        stamp_ns = record_time_ns(msgdef, msg._buff, 0) or rospy.get_rostime().to_nsec()
         try:
             written = self._bags.write(
                 topic,
@@ -131,7 +111,7 @@ class RecorderNode:
                 header["md5sum"],
                 msgdef,
                 stamp_ns,
-                data,
+                msg._buff,
                 latching=header.get("latching", "0") == "1",
                 callerid=header.get("callerid", ""),
             )
@@ -176,15 +156,6 @@ class RecorderNode:
         for subscriber in self._subscribers:
             subscriber.unregister()
         return self._bags.close()
-
-
-def _wire(msg: Any) -> bytes:
-    """A message in ROS 1 wire format again: in a node that subscribes to a recorded topic
-    itself, rospy hands the recorder the node's typed messages (one subscription per topic and
-    process, typed by its first subscriber)."""
-    buff = io.BytesIO()
-    msg.serialize(buff)
-    return buff.getvalue()
 
 
 def main(argv: list[str] | None = None) -> int:
