@@ -667,7 +667,7 @@ def test_the_stills_and_the_replay_in_one_pool_are_the_same_files_and_leave_it_r
     assert not (tmp_path / "c.gif").exists()
 
 
-def test_the_report_renders_in_its_pool_of_one(tmp_path, monkeypatch):
+def test_the_report_renders_in_its_pool_of_two(tmp_path, monkeypatch):
     """One pool of RENDER_PROCESSES for the stills and the replay's parts, shut down after."""
     pools = []
     make_pool = report_module.render_pool
@@ -680,7 +680,7 @@ def test_the_report_renders_in_its_pool_of_one(tmp_path, monkeypatch):
     _write_bags(tmp_path / "bags")
     document = write_run_report(tmp_path, _document(), renders=True)
     assert "replay" in document["figures"] and "still_00" in document["figures"]
-    assert [workers for workers, _ in pools] == [report_module.RENDER_PROCESSES] == [1]
+    assert [workers for workers, _ in pools] == [report_module.RENDER_PROCESSES] == [2]
     with pytest.raises(RuntimeError, match="after shutdown"):
         pools[0][1].submit(sum, [1])
 

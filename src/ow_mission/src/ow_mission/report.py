@@ -11,7 +11,7 @@ and the figures' file names. ``python -m ow_mission.report RUN_DIR`` rebuilds th
 
 The bags are read once for all of it (:func:`read_report_messages`: each file opened, each
 message type parsed and each message deserialised once), and the replay's frames are rendered
-by a worker process while this one makes the other figures.
+by two worker processes while this one makes the other figures.
 """
 
 from __future__ import annotations
@@ -53,11 +53,9 @@ class Figures:
     notes: dict[str, str] = field(default_factory=dict)
 
 
-#: Processes rendering the stills and the replay, which writes its GIF too (its frames never
-#: come to this process). One, the stills and then the replay: each process holds a pybullet
-#: client with the robot and the terrain (~90 MB); a second one would save ~0.7 s of the report
-#: (docs/performance.md, ninth round).
-RENDER_PROCESSES = 1
+#: Processes rendering the stills and the replay: the stills in one, the replay in the other,
+#: which writes its GIF too (its frames never come to this process).
+RENDER_PROCESSES = 2
 
 #: Makes one figure from the run directory, the document, the recording and the figures so far;
 #: returns a note when it cannot.
@@ -364,8 +362,8 @@ def _figures_from_bags(
     renders: bool,
 ) -> None:
     """The power plot, then the figures of the replay's :class:`Recording`, in the report's
-    order. The stills and the replay are rendered by a forked process from the start (about 2
-    and 5 CPU-s), alongside the other figures: this process collects them at the end.
+    order. The stills and the replay are rendered by two forked processes from the start (about
+    2 and 2.5 CPU-s), alongside the other figures: this process collects them at the end.
     ``messages`` loses its ``/joint_states`` and ``/power`` once the recording and the power
     analysis are made from them."""
     recording: Recording | None = None
@@ -388,6 +386,9 @@ def _figures_from_bags(
 
     def start(recording: Recording) -> str | None:
         nonlocal rendering, stills, pool
+        # Two processes, not one for the stills and two for the replay: each holds a pybullet
+        # client with the robot and the terrain (~65-90 MB), and the report's CPU after the
+        # fork is the same on two cores (docs/performance.md, eighth round).
         pool = render_pool(RENDER_PROCESSES)
         stills = start_stills(run_dir, document, recording, pool)
         rendering = start_replay_figure(run_dir, document, recording, pool)
