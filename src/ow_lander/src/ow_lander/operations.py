@@ -20,10 +20,9 @@ import numpy as np
 import numpy.typing as npt
 
 from ow_lander import ground_operations
-from ow_lander.arm_plane import SHOULDER_XY, shoulder_yaw_for
 from ow_lander.description import ARM_JOINTS, SCOOP_LINK, SCOOP_TIP_FRAME, STOWED, UNSTOWED
 from ow_lander.errors import PlanningError
-from ow_lander.motions import ArmMotions, ry
+from ow_lander.motions import SHOULDER_XY, ArmMotions, ry, shoulder_yaw_for
 from ow_lander.operation_plan import OperationPlan, check_finite
 from ow_lander.planning import ArmPlanner
 from ow_lander.terrain import HeightMap

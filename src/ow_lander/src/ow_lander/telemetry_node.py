@@ -18,9 +18,9 @@ from ow_lander.telemetry import (
     ARM_POSE_FRAME,
     RateGate,
     TelemetryBuilder,
+    TelemetryConfig,
     TelemetryError,
 )
-from ow_lander.telemetry_config import TelemetryConfig
 from owl_msgs.msg import (
     ArmJointAccelerations,
     ArmJointPositions,

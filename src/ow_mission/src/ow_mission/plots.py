@@ -17,9 +17,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ow_lander.arm_plane import shoulder_yaw_for
 from ow_lander.ground_detection import GroundDetector
 from ow_lander.ground_operations import GRIND_PASS_SHIFT
+from ow_lander.motions import shoulder_yaw_for
 from ow_lander.terrain import HeightMap
 from ow_mission.recording import Recording
 
