@@ -221,7 +221,7 @@ def _write_gif(images: Sequence[Any], path: Path, fps: float) -> None:
     images[0].save(
         path,
         save_all=True,
-        append_images=list(images[1:]),
+        append_images=images[1:],
         duration=round(1000.0 / fps),
         loop=0,
         optimize=False,
@@ -336,26 +336,15 @@ class ReplayRendering:
                         future.cancel()
             workers_cpu_s = sum(r.cpu_s for r in rendered)
         images = [image for r in rendered for image in r.images]
-        ready_s = max(r.done_s for r in rendered)
         _write_gif(images, self.path, self._fps)
-        # The replay's own time: choosing the frames, rendering them, collecting and writing
-        # them; not the caller's time between start and finish with nothing rendering or with
-        # the frames ready.
-        seconds = (
-            self._start_wall_s
-            + (ready_s - rendering_from_s)
-            + (time.monotonic() - max(called_s, ready_s))
-        )
-        return ReplayResult(
-            self.path,
+        written = _Written(
             len(images),
-            self._fps,
             images[0].width,
             images[0].height,
-            seconds,
-            self._start_cpu_s + (time.process_time() - cpu0) + workers_cpu_s,
-            self._sim_span_s,
+            workers_cpu_s,
+            max(r.done_s for r in rendered),
         )
+        return self._result(written, rendering_from_s, called_s, cpu0)
 
     def _finish_written(
         self, future: Future[_Written], called_s: float, cpu0: float, count: int
@@ -365,9 +354,19 @@ class ReplayRendering:
         if self._on_frame is not None:
             for i in range(count):
                 self._on_frame(i, count)
+        return self._result(written, self._started_s, called_s, cpu0)
+
+    def _result(
+        self, written: _Written, rendering_from_s: float, called_s: float, cpu0: float
+    ) -> ReplayResult:
+        """The replay's figures once its GIF is written: ``written.cpu_s`` is the CPU time of
+        other processes (0 when this one rendered), ``written.done_s`` when the frames were
+        ready. Its own time: choosing the frames, rendering them, collecting and writing them;
+        not the caller's time between start and finish with nothing rendering or with the
+        frames ready."""
         seconds = (
             self._start_wall_s
-            + (written.done_s - self._started_s)
+            + (written.done_s - rendering_from_s)
             + (time.monotonic() - max(called_s, written.done_s))
         )
         return ReplayResult(
