@@ -86,6 +86,25 @@ def decision_is_empty(decision):
     return decision.hold is None and decision.result is None and decision.setpoints is None
 
 
+def test_states_queued_from_before_the_stop_stamp_neither_brake_nor_command(model, unstow):
+    """A node deciding late (states still queued when the stop comes) brakes on the stop's own
+    joint state, as a prompt one does: the braking starts at the same state at any load."""
+    monitor = _monitor(model, unstow)
+    half = round(unstow.duration / 2 * RATE_HZ) / RATE_HZ
+    t_stop = T_START + half
+    assert _feed_until(monitor, half - 0.2) is None
+    queued = [half - 0.2 + k / RATE_HZ for k in range(1, 11)]  # received, not yet decided
+    for t in queued:
+        monitor.record_joint_state(T_START + t, _joints(unstow, unstow.sample(t)))
+    monitor.request_stop(t_stop)
+    for t in queued[:-1]:
+        assert decision_is_empty(monitor.decide(T_START + t, _joints(unstow, unstow.sample(t))))
+    assert monitor.braking is None
+    decision = monitor.decide(t_stop, _joints(unstow, unstow.sample(half)))
+    assert decision.hold == pytest.approx(_joints(unstow, unstow.sample(half)))
+    assert monitor.braking is not None and monitor.braking.last_stamp == t_stop
+
+
 def test_a_joint_still_moving_keeps_the_arm_braking(model, unstow):
     monitor = _monitor(model, unstow)
     t_stop = T_START + 2.0

@@ -136,6 +136,23 @@ def test_a_simulation_paused_at_a_hold_takes_no_step_when_its_client_leaves(runn
     assert runner.lockstep_status()[0] >= 0.1  # and runs on once resumed
 
 
+def test_a_pause_answers_once_the_simulation_stands_with_its_outputs_written(runner):
+    """``/sim/pause`` answers once the thread stands with everything up to its time written: a
+    stop stamps its request and brakes where the simulation stands, once it has received that
+    (a cancel once braked 0.35 s of sim time after its request on a loaded machine)."""
+    runner.outputs.standing_s = 0.2  # the standing's writes are slow
+    runner.resume()
+    deadline = time.monotonic() + 5.0
+    while runner.lockstep_status()[0] < 0.5 and time.monotonic() < deadline:
+        time.sleep(0.001)
+    assert runner.pause_standing() is False  # it was running
+    now = runner.lockstep_status()[0]
+    assert runner.outputs.stood[-1] == now  # written before the answer
+    time.sleep(0.05)
+    assert runner.lockstep_status()[0] == now
+    assert runner.pause_standing() is True
+
+
 def _run_with_acks(runner: SimRunner, delay_s: float) -> list[tuple[float, np.ndarray]]:
     """Acknowledge every state (``delay_s`` of wall time late), commanding the shoulder yaw to
     0.3 rad on the state of 0.1 s; the recorded joint states up to 1 s."""

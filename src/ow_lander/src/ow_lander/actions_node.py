@@ -8,7 +8,6 @@ from functools import partial
 from types import SimpleNamespace
 from typing import Any, Protocol
 
-import actionlib
 import numpy as np
 import rospy
 
@@ -31,6 +30,7 @@ from ow_lander.feedback_node import StampedFeedback
 from ow_lander.model import LanderModel
 from ow_lander.operations import Operations
 from ow_lander.status_timer_node import share_status_timer
+from ow_lander.stop_requests_node import PausingActionServer, StopRequests
 from ow_lander.trajectory import Trajectory
 from ow_msgs.msg import Operation
 
@@ -82,17 +82,16 @@ class ArmActions:
     def __init__(self, node: ArmOwner) -> None:
         self.node = node
         self._lock = threading.Lock()
-        self._running: Any = None
+        self._running: tuple[str, str] | None = None  # the action and goal id running
         self._cancelled = threading.Event()
+        self.stops = StopRequests(node.executor, self._running_goal)
         self.servers = []
         for name in ARM_ACTIONS:
             action, on_goal = getattr(owl, f"{name}Action"), partial(self._on_goal, name)
-            self.servers.append(
-                actionlib.ActionServer(name, action, on_goal, self._on_cancel, auto_start=False)
-            )
-        self.servers.append(
-            actionlib.ActionServer("ArmStop", owl.ArmStopAction, self._on_stop, auto_start=False)
-        )
+            around = partial(self.stops.around_cancel, name)
+            server = PausingActionServer(name, action, on_goal, self._on_cancel, None, around)
+            self.servers.append(server)
+        self.servers.append(self.stops.server)
         for server in self.servers:
             server.start()
         self._status_timer = share_status_timer(self.servers)
@@ -113,30 +112,25 @@ class ArmActions:
             handle.set_rejected(text=text)
             return
         with self._lock:
-            self._running = handle.get_goal_id().id
+            self._running = (name, handle.get_goal_id().id)
             self._cancelled.clear()
         handle.set_accepted()
         threading.Thread(target=self._run, args=(name, handle, goal), daemon=True).start()
 
+    def _running_goal(self) -> tuple[str, str] | None:
+        with self._lock:
+            return self._running
+
     def _on_cancel(self, handle: Any) -> None:
         with self._lock:
-            ours = self._running == handle.get_goal_id().id
+            ours = self._running is not None and self._running[1] == handle.get_goal_id().id
             if ours:
                 self._cancelled.set()
         if ours:
+            self.stops.started_stop()
             # Not in this callback: actionlib holds the server's lock while it runs, which the
             # feedback (on the joint states the stop waits for) needs too.
             threading.Thread(target=self.node.executor.stop, daemon=True).start()
-
-    def _on_stop(self, handle: Any) -> None:
-        handle.set_accepted()
-        threading.Thread(target=self._stop, args=(handle,), daemon=True).start()
-
-    def _stop(self, handle: Any) -> None:
-        if self.node.executor.stop():
-            handle.set_succeeded(text="stopped the arm; it holds where it stopped")
-        else:
-            handle.set_aborted(text="nothing to stop: no arm trajectory is running")
 
     # ----------------------------------------------------------------------------- running
     def _run(self, name: str, handle: Any, goal: dict[str, Any]) -> None:

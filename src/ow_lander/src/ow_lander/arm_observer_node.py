@@ -149,6 +149,25 @@ class ArmObserver:
                 stamp = self._joint_stamp
                 self._state_changed.wait(timeout=quiet_s)
 
+    def wait_standing(self, clock: float, stamp: float) -> None:
+        """Wait (``joint_state_timeout_s`` of wall time at most; logged when it runs out) until
+        this node has what a paused simulation published up to where it stands: its clock reads
+        ``clock`` and its newest joint state is the one of ``stamp`` (s, sim; see
+        :meth:`~ow_lander.sim_clock_node.SimClock.standing`), however long they took to come."""
+        deadline = time.monotonic() + self.joint_state_timeout_s
+        with self._state_changed:
+            self._state_changed.wait_for(
+                lambda: self._joint_stamp >= stamp - STAMP_SLACK_S, self.joint_state_timeout_s
+            )
+            newest = self._joint_stamp
+        while rospy.get_time() < clock - STAMP_SLACK_S and time.monotonic() < deadline:
+            time.sleep(0.001)  # rospy's clock has no condition to wait on
+        if newest < stamp - STAMP_SLACK_S or rospy.get_time() < clock - STAMP_SLACK_S:
+            rospy.logwarn(
+                f"arm services: the paused simulation's t={clock:.3f} s (joint state of "
+                f"t={stamp:.3f} s) did not arrive within {self.joint_state_timeout_s} s"
+            )
+
     def newest_stamp(self) -> float:
         """s (sim), the stamp of the newest joint state received (0 before one)."""
         with self._state_changed:

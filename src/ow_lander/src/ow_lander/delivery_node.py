@@ -4,8 +4,9 @@ the arm_services node)."""
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
+import numpy as np
 import rospy
 from trajectory_msgs.msg import JointTrajectory
 
@@ -19,7 +20,8 @@ from ow_lander.trajectory import Trajectory
 class TrajectoryDelivery:
     """Sends trajectories to the simulation's joint trajectory controller.
 
-    Publishes: ``/sim/joint_trajectory`` (trajectory_msgs/JointTrajectory).
+    Publishes: ``/sim/joint_trajectory`` (trajectory_msgs/JointTrajectory): trajectories, and
+        a stop's braking hold (:meth:`hold`).
     Calls: ``/sim/pause``, ``/sim/resume`` (std_srvs/Trigger) around a delivery, through
         :attr:`sim_clock` (:class:`~ow_lander.sim_clock_node.SimClock`).
 
@@ -33,6 +35,25 @@ class TrajectoryDelivery:
         self.observer = observer
         self.sim_clock = SimClock(config.service_wait_s)
         self.publisher = rospy.Publisher("/sim/joint_trajectory", JointTrajectory, queue_size=10)
+
+    def hold(self, positions: Mapping[str, float]) -> bool:
+        """Hand the simulation a hold of ``positions`` (rad by joint name) as a one-point
+        trajectory starting on arrival, and wait for its receipt (a stop's braking, sent while
+        the clock is paused: it takes effect before the clock runs on, at any load). False when
+        the simulation sends no receipts: publish the hold as set-points instead.
+
+        Raises:
+            TrajectoryDeliveryError: no receipt came, or the simulation ignored the hold.
+        """
+        if self.publisher.get_num_connections() == 0 or not self.sim_clock.sends_receipts():
+            return False
+        joints = tuple(positions)
+        row = np.array([[positions[j] for j in joints]])
+        hold = Trajectory(joints, np.zeros(1), row, np.zeros_like(row), ("hold",), "stop")
+        token = self.sim_clock.new_token()
+        self.publisher.publish(conv.trajectory_msg(hold, 0.0, token))
+        self.sim_clock.wait_received(token)
+        return True
 
     def send(self, trajectory: Trajectory, started: Callable[[float], None]) -> float:
         """Hand ``trajectory`` to the simulation; call ``started`` with when (sim time, s) it

@@ -400,8 +400,9 @@ class ExecutionMonitor:
         return self.guard is not None and self.guard.kind in ("force", "wrench")
 
     def request_stop(self, stamp: float, fault: str | None = None) -> None:
-        """Stop at ``stamp`` (s, sim; a cancelled action, ``ArmStop``, or a ``fault``): the next
-        decision holds the arm at the joint state of that stamp (it brakes); once it is at rest,
+        """Stop at ``stamp`` (s, sim; a cancelled action, ``ArmStop``, or a ``fault``): the
+        decision on the joint state of that stamp (or the first after it; none on those before)
+        holds the arm at the joint state of that stamp (it brakes); once it is at rest,
         the arm is held where it came to rest and the execution ends as stopped, or, for a
         fault, as failed with the fault in its message."""
         if self.stop_time is None:
@@ -429,6 +430,8 @@ class ExecutionMonitor:
         if contact is not None and contact <= stamp + STAMP_SLACK_S:
             return self._contact(here, t)
         if self.stop_time is not None:
+            if stamp < self.stop_time - STAMP_SLACK_S:  # a state from before the stop request
+                return Decision()
             return self._stop(stamp, here, t)
         setpoints = None
         if cfg.interface == "position_controllers" and stamp >= self._next_command:

@@ -15,6 +15,7 @@ from ow_lander.config import ExecutionConfig
 from ow_lander.decision_node import DecisionOutlet
 from ow_lander.delivery_node import TrajectoryDelivery
 from ow_lander.execution import (
+    Decision,
     ExecutionMonitor,
     ExecutionResult,
     start_error,
@@ -25,6 +26,7 @@ from ow_lander.faults_watch_node import FaultWatch
 from ow_lander.lock_flags_node import LockFlags, without_locks
 from ow_lander.model import LanderModel
 from ow_lander.sim_clock_node import TrajectoryDeliveryError
+from ow_lander.stop_clock_node import StopPause
 from ow_lander.trajectory import Trajectory
 from ow_msgs.msg import GuardedMoveResult
 
@@ -62,10 +64,18 @@ class ArmExecutor(ArmObserver):
         self.faults = FaultWatch(self._on_fault_status)
         self._flags = LockFlags() if config.lockstep else None
         self._stop_requested = False  # by a user or the telemetry: braking goes out at once
+        self.stop_pause = StopPause(self._sim_clock, self, config.delivery_wait_s)
+        self._braking_sent = threading.Event()  # a requested stop's braking went out
+        self._braking_confirmed = False  # and the simulation confirmed it has it
         if config.lockstep:
             threading.Thread(
                 target=self.join_lockstep, args=(config.lockstep_hold,), daemon=True
             ).start()
+
+    def executing(self) -> bool:
+        """Whether an execution runs now (a stop would stop it)."""
+        with self._state_changed:
+            return self._monitor is not None
 
     def settle(self) -> None:
         """With ``lockstep_hold``, after an execution: wait until the simulation stands where this
@@ -183,36 +193,55 @@ class ArmExecutor(ArmObserver):
                     with self._state_changed:
                         monitor.request_stop(stamp, fault)
             with self._state_changed:
+                unbraked = monitor.braking is None
                 decision = monitor.decide(stamp, joints) if arrived else monitor.stalled()
-            self.outlet.apply(decision, stamp, self._lockstep, now=self._stop_requested)
+                braking = unbraked and monitor.braking is not None
+            now = braking and self._stop_requested  # the rest goes as every decision does
+            if now:
+                decision = self._deliver_braking(decision)
+            self.outlet.apply(decision, stamp, self._lockstep, now=now)
+            if braking:
+                self._braking_sent.set()
             if decision.result is not None:
                 return decision.result
         return ExecutionResult(False, "shutting down")
 
+    def _deliver_braking(self, decision: Decision) -> Decision:
+        """Send a requested stop's braking hold as a trajectory the simulation confirms (while
+        its clock is paused for the stop: the hold takes effect before it runs on); return
+        what is left to publish (nothing, or all of it when the simulation sends no receipts
+        or the delivery failed, logged)."""
+        try:
+            self._braking_confirmed = self.delivery.hold(decision.hold or {})
+        except TrajectoryDeliveryError as error:
+            rospy.logwarn(f"arm services: the braking hold went out as set-points: {error}")
+            self._braking_confirmed = False
+        if self._braking_confirmed:
+            return Decision(result=decision.result)
+        return decision
+
     def stop(self, fault: str | None = None, stamp: float | None = None) -> bool:
         """Stop the running execution and hold the arm where it comes to rest; False when none
         runs. The simulation's clock is paused from the stop request until the braking hold is
-        delivered, so the arm starts braking at once in simulation time at any speed. A
-        ``fault`` (its message) makes the execution fail with it, braking from ``stamp`` (s sim,
-        when the fault arose; default: the newest joint state)."""
+        delivered (:class:`~ow_lander.stop_clock_node.StopPause`; a pause taken ahead of the
+        request is used), so the arm starts braking at once in simulation time at any speed and
+        load. A ``fault`` (its message) makes the execution fail with it, braking from ``stamp``
+        (s sim, when the fault arose; default: the newest joint state)."""
         self._stop_requested = True
-        paused_here = self._sim_clock.pause()
-        paused = paused_here is not None
+        paused_here = self.stop_pause.take()
         try:
-            if paused and self._monitor is not None:
-                # The newest joint state is then the paused simulation's: the arm brakes there.
-                self.wait_quiet(self.config.delivery_wait_s)
             with self._state_changed:
                 monitor = self._monitor
+                fresh = monitor is not None and monitor.stop_time is None
                 if monitor is not None:
+                    self._braking_sent.clear()
                     since = self._joint_stamp if stamp is None else min(stamp, self._joint_stamp)
                     monitor.request_stop(since, fault)
                     self._state_changed.notify_all()
-            deadline = time.monotonic() + self.config.joint_state_timeout_s
-            while monitor is not None and monitor.braking is None and time.monotonic() < deadline:
-                time.sleep(0.002)
-            if paused:
-                time.sleep(self.config.delivery_wait_s)
+            if fresh and paused_here is not None:  # the braking goes out before the clock runs
+                self._braking_sent.wait(timeout=self.config.joint_state_timeout_s)
+                if not self._braking_confirmed:
+                    time.sleep(self.config.delivery_wait_s)  # set-points: time to arrive
         finally:
             if paused_here:
                 self._sim_clock.resume()

@@ -10,6 +10,8 @@ import rospy
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
+from ow_lander.lockstep_node import LockstepError, simulation_status
+
 #: frame_id prefix of the receipt of a trajectory the simulation ignored.
 REFUSED = "refused:"
 #: ``/sim/pause``'s message when the clock was stopped already (ow_sim_bullet's sim node).
@@ -96,6 +98,18 @@ class SimClock:
         if response is None:
             return None
         return response.message != ALREADY_PAUSED
+
+    def standing(self) -> tuple[float, float] | None:
+        """Where the simulation stands once :meth:`pause` answered (it answers once the
+        simulation has published everything up to there): its time and the stamp of the newest
+        joint state it published (s, sim), from ``/sim/lockstep_status``; None when it offers
+        none (logged)."""
+        try:
+            reply = simulation_status()
+        except LockstepError as error:
+            rospy.logwarn(f"arm_services: {error}")
+            return None
+        return float(reply.sim_time), float(reply.joint_state_stamp)
 
     def resume(self) -> None:
         """Restart the simulation's clock (``/sim/resume``), after a :meth:`pause` that

@@ -217,6 +217,19 @@ class SimRunner:
             self._wake.notify()
         return was
 
+    def pause_standing(self) -> bool:
+        """:meth:`pause`, returning once the simulation thread stands: the step under way is
+        finished and everything up to the time it stands at is written (``/clock`` at that
+        time, the newest joint state). A node that then waits for what it stands at (its
+        ``~lockstep_status``) has all the simulation published before the pause, at any load.
+
+        Raises:
+            SimError: the simulation thread did not answer (stalled, or shutting down).
+        """
+        was = self.pause()
+        self.call(lambda: None)  # run by the thread after it stood (see run)
+        return was
+
     def resume(self) -> bool:
         """Start stepping again; returns whether it was paused."""
         with self._wake:

@@ -76,7 +76,7 @@ class SimNode:
 
     Services (std_srvs/Trigger unless given):
         ~reset: joints back to ``~initial_positions`` (stowed), at rest, trajectories cleared.
-        ~pause, ~resume: stop and restart the clock.
+        ~pause, ~resume: stop and restart the clock (~pause answers once all is out up to it).
         ~step (ow_msgs/StepSimulation): advance a paused simulation by N physics steps.
         ~set_pid_gains (ow_msgs/SetPidGains): change one joint's gains now (partial requests
             keep what they leave out; see SimReconfigure).
@@ -168,7 +168,11 @@ class SimNode:
         return TriggerResponse(True, f"joints reset at sim time {self.sim.time:.3f} s")
 
     def _on_pause(self, _: Any) -> TriggerResponse:
-        return TriggerResponse(True, "already paused" if self.runner.pause() else "paused")
+        try:
+            was = self.runner.pause_standing()
+        except SimError as error:
+            return TriggerResponse(success=False, message=str(error))
+        return TriggerResponse(True, "already paused" if was else "paused")
 
     def _on_resume(self, _: Any) -> TriggerResponse:
         return TriggerResponse(True, "resumed" if self.runner.resume() else "already running")
