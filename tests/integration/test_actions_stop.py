@@ -4,21 +4,27 @@ time is the stamp of the server's first status naming it (actionlib publishes it
 takes a goal or a cancel). The server pauses the simulation before it takes the request, so that
 stamp is where the simulation stands, and the arm brakes from there.
 
-The stack runs in the lockstep (as a mission does) and as fast as the simulation can: the stop
-then takes the same simulation time at any speed and load. Before the pause came ahead of the
-request, a loaded machine at real time once stopped 0.35 s after it, and 10x real time 0.31 s
-(cancel) and 0.36 s (ArmStop)."""
+The stack runs in the lockstep, held where each operation has settled (as a mission does), and
+as fast as the simulation can; the test joins the lockstep and holds the simulation half-way
+through the move while it sends the request (:class:`HalfwayHold`). The stop is then the same
+run after run at any load (0.170 s, 0.504-0.505 and 0.448 mrad, idle and beside eight busy
+loops). Before the pause came ahead of the request, a loaded machine at real time once stopped
+0.35 s after it, and 10x real time 0.31 s (cancel) and 0.36 s (ArmStop)."""
 
 from __future__ import annotations
 
+import threading
 import time
 
 import numpy as np
 import pytest
 from actionlib_msgs.msg import GoalStatus, GoalStatusArray
+from sensor_msgs.msg import JointState
 from test_actions import JointLog, client, forget_clients, run
 
 import owl_msgs.msg as owl
+from ow_lander.description import ARM_JOINTS
+from ow_lander.lockstep_node import LockstepClient
 from ow_mission.testing import subscribe
 from ow_msgs.srv import Unstow
 
@@ -27,7 +33,10 @@ from ow_msgs.srv import Unstow
 def stack(start_lander):
     forget_clients()
     sim = {"real_time_factor": 0.0}  # as fast as it can: a wall-time lag shows at its worst
-    return start_lander(sim=sim, arm={"execution": {"lockstep": True}})
+    # Held where each operation has settled, as in a mission: each move starts from the same
+    # state whenever the test sends it (3 s: the checks look 2.5 s past a stop).
+    execution = {"lockstep": True, "lockstep_hold": True, "lockstep_settle_s": 3.0}
+    return start_lander(sim=sim, arm={"execution": execution})
 
 
 @pytest.fixture(scope="module")
@@ -77,14 +86,48 @@ def _long_move(joints):
     return owl.ArmMoveJointsGoal(False, target.tolist()), target
 
 
-def _halfway(c, joints, start, target):
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        done = abs(joints.latest()[0] - start[0]) / abs(target[0] - start[0])
-        if done > 0.5:
-            return
-        time.sleep(0.002)
-    pytest.fail("the move never got half-way")
+class HalfwayHold:
+    """The test in the lockstep: it acknowledges every joint state until the shoulder yaw has
+    turned half-way from ``start`` to ``target`` (rad), and none from then on until
+    :meth:`release`. The simulation then stands a lockstep latency past the last state before
+    half-way while the test sends its request, at any load: a test watching a free-running
+    simulation sent it anywhere from half-way to the end of the move under load."""
+
+    def __init__(self, start: float, target: float) -> None:
+        self.start, self.target = start, target
+        self.reached = threading.Event()
+        self._released = False
+        self._newest = 0.0
+        self._lock = threading.Lock()
+        self.client = LockstepClient("actions_stop_test")
+        self.sub = subscribe("/joint_states", JointState, self._on, tcp_nodelay=True)
+        self.client.register()
+
+    def _on(self, msg: JointState) -> None:
+        stamp = msg.header.stamp.to_sec()
+        yaw = dict(zip(msg.name, msg.position, strict=False))[ARM_JOINTS[0]]
+        with self._lock:
+            self._newest = stamp
+            if abs(yaw - self.start) > 0.5 * abs(self.target - self.start):
+                self.reached.set()
+            if self._released or not self.reached.is_set():
+                self.client.ack(stamp, force=True)
+
+    def wait(self) -> None:
+        """Wait until the move is half-way (the simulation then stands)."""
+        if not self.reached.wait(120):
+            pytest.fail("the move never got half-way")
+
+    def release(self) -> None:
+        """Acknowledge every joint state from now on: the simulation runs on."""
+        with self._lock:
+            self._released = True
+            self.client.ack(self._newest, force=True)
+
+    def close(self) -> None:
+        self.release()
+        self.client.close()
+        self.sub.unregister()
 
 
 def _check_held(joints, t_stop):
@@ -94,7 +137,9 @@ def _check_held(joints, t_stop):
 
     The latency bounds the drift too: an arm that crept by more than 0.5 mrad after stopping
     would settle late."""
-    joints.wait_sim(2.5)
+    deadline = time.monotonic() + 60
+    while joints.samples[-1][0] < t_stop + 2.5 and time.monotonic() < deadline:
+        time.sleep(0.01)
     final = joints.latest()
     after = [(t, q) for t, q in joints.samples if t >= t_stop]
     far = [t for t, q in after if np.max(np.abs(q - final)) > 5e-4]
@@ -110,13 +155,18 @@ def test_cancel_halfway_holds_the_arm(stack, joints):
     goal, target = _long_move(joints)
     c = client("ArmMoveJoints")
     statuses = StatusTimes("ArmMoveJoints")
-    c.send_goal(goal)
-    _halfway(c, joints, start, target)
-    c.cancel_goal()
-    assert c.wait_for_end(30)
+    hold = HalfwayHold(start[0], target[0])
+    try:
+        c.send_goal(goal)
+        hold.wait()
+        c.cancel_goal()
+        # The move's goal went into PREEMPTING when the server took the cancel.
+        t_cancel = statuses.when(GoalStatus.PREEMPTING)
+        hold.release()
+        assert c.wait_for_end(30)
+    finally:
+        hold.close()
     assert c.get_state() == GoalStatus.PREEMPTED, c.get_goal_status_text()
-    # The move's goal went into PREEMPTING when the server took the cancel.
-    t_cancel = statuses.when(GoalStatus.PREEMPTING)
     statuses.sub.unregister()
     latency, drift, span = _check_held(joints, t_cancel)
     print(f"cancel: stopped {latency:.3f} s sim after the request; drift {drift * 1e3:.3f} mrad")
@@ -131,17 +181,23 @@ def test_arm_stop_stops_a_goal_and_aborts_when_idle(stack, joints):
     stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
     start = joints.latest().copy()
     goal, target = _long_move(joints)
-    client("ArmStop")  # connected before the move: the request itself is timed
+    stop = client("ArmStop")  # connected before the move: the request itself is timed
     statuses = StatusTimes("ArmStop")
     c = client("ArmMoveJoints")
-    c.send_goal(goal)
-    _halfway(c, joints, start, target)
-    known = statuses.goals()
-    state, _, text = run("ArmStop", owl.ArmStopGoal(), timeout=30)
-    assert state == GoalStatus.SUCCEEDED, text
+    hold = HalfwayHold(start[0], target[0])
+    try:
+        c.send_goal(goal)
+        hold.wait()
+        known = statuses.goals()
+        stop.send_goal(owl.ArmStopGoal())
+        t_stop = statuses.when(GoalStatus.ACTIVE, known)  # the server took the ArmStop goal
+        hold.release()
+        assert stop.wait_for_end(30)
+    finally:
+        hold.close()
+    assert stop.get_state() == GoalStatus.SUCCEEDED, stop.get_goal_status_text()
     assert c.wait_for_end(30)
     assert c.get_state() == GoalStatus.PREEMPTED
-    t_stop = statuses.when(GoalStatus.ACTIVE, known)  # the server took the ArmStop goal
     statuses.sub.unregister()
     latency, drift, _ = _check_held(joints, t_stop)
     print(f"ArmStop: stopped {latency:.3f} s sim after the request; drift {drift * 1e3:.3f} mrad")
