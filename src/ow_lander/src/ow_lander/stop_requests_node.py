@@ -64,7 +64,9 @@ class StopRequests:
         running: the action and goal id running now, or None.
     """
 
-    def __init__(self, executor: ArmExecutor, running: Callable[[], tuple[str, str] | None]):
+    def __init__(
+        self, executor: ArmExecutor, running: Callable[[], tuple[str, str] | None]
+    ) -> None:
         self.executor = executor
         self._running = running
         self._taken = threading.local()  # a stop started while actionlib took a message
