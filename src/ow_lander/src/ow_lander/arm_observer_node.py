@@ -23,6 +23,7 @@ from ow_lander.errors import PlanningError
 from ow_lander.execution import ExecutionMonitor
 from ow_lander.guard_streams import GuardStreams
 from ow_lander.lockstep_node import LockstepClient, LockstepError
+from ow_lander.sim_time_node import wait_for_clock
 from ow_lander.tip_sampler_node import TipSampler
 from ow_msgs.msg import GroundDetectorSignal
 from owl_msgs.msg import ArmEndEffectorForceTorque
@@ -154,18 +155,19 @@ class ArmObserver:
         this node has what a paused simulation published up to where it stands: its clock reads
         ``clock`` and its newest joint state is the one of ``stamp`` (s, sim; see
         :meth:`~ow_lander.sim_clock_node.SimClock.standing`), however long they took to come."""
-        deadline = time.monotonic() + self.joint_state_timeout_s
-        with self._state_changed:
-            self._state_changed.wait_for(
-                lambda: self._joint_stamp >= stamp - STAMP_SLACK_S, self.joint_state_timeout_s
-            )
-            newest = self._joint_stamp
-        while rospy.get_time() < clock - STAMP_SLACK_S and time.monotonic() < deadline:
-            time.sleep(0.001)  # rospy's clock has no condition to wait on
-        if newest < stamp - STAMP_SLACK_S or rospy.get_time() < clock - STAMP_SLACK_S:
+        arrived = self._wait_joint_state(stamp)
+        if not (wait_for_clock(clock, self.joint_state_timeout_s) and arrived):
             rospy.logwarn(
                 f"arm services: the paused simulation's t={clock:.3f} s (joint state of "
                 f"t={stamp:.3f} s) did not arrive within {self.joint_state_timeout_s} s"
+            )
+
+    def _wait_joint_state(self, stamp: float) -> bool:
+        """Wait (``joint_state_timeout_s`` of wall time at most) until the joint state of
+        ``stamp`` (s, sim) or a newer one has arrived; whether it has."""
+        with self._state_changed:
+            return self._state_changed.wait_for(
+                lambda: self._joint_stamp >= stamp - STAMP_SLACK_S, self.joint_state_timeout_s
             )
 
     def newest_stamp(self) -> float:
@@ -192,14 +194,11 @@ class ArmObserver:
         except LockstepError as error:
             rospy.logwarn(f"arm services: {error}")
             return
-        with self._state_changed:
-            if not self._state_changed.wait_for(
-                lambda: self._joint_stamp >= stamp - STAMP_SLACK_S, self.joint_state_timeout_s
-            ):
-                rospy.logwarn(
-                    f"arm services: the joint state of t={stamp:.3f} s did not arrive within "
-                    f"{self.joint_state_timeout_s} s; planning from t={self._joint_stamp:.3f} s"
-                )
+        if not self._wait_joint_state(stamp):
+            rospy.logwarn(
+                f"arm services: the joint state of t={stamp:.3f} s did not arrive within "
+                f"{self.joint_state_timeout_s} s; planning from t={self.newest_stamp():.3f} s"
+            )
 
     def current_joints(self) -> dict[str, float]:
         """rad by name, the latest joint state of the lander's joints; waits for the first one

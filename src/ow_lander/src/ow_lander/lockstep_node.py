@@ -19,6 +19,7 @@ from typing import Any
 import rospy
 
 from ow_lander.description import STAMP_SLACK_S
+from ow_lander.sim_time_node import wait_for_clock
 from ow_msgs.msg import LockstepAck
 from ow_msgs.srv import LockstepRegister, LockstepStatus
 
@@ -180,9 +181,7 @@ class LockstepClient:
         except LockstepError as error:
             rospy.logwarn(f"{self.name}: {error}")
             return
-        deadline = time.monotonic() + timeout_s
-        while rospy.get_time() < stamp - STAMP_SLACK_S and time.monotonic() < deadline:
-            time.sleep(0.002)
+        wait_for_clock(stamp, timeout_s)
 
     def close(self) -> None:
         """Leave the lockstep (the simulation no longer waits for this client)."""

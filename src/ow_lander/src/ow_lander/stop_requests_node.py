@@ -10,6 +10,7 @@ from collections.abc import Callable
 from typing import Any
 
 import actionlib
+from actionlib.action_server import nop_cb
 
 import owl_msgs.msg as owl
 from ow_lander.execution_node import ArmExecutor
@@ -30,14 +31,11 @@ class PausingActionServer(actionlib.ActionServer):
         ns: str,
         action: Any,
         goal_cb: Callable[[Any], None],
-        cancel_cb: Callable[[Any], None] | None = None,
+        cancel_cb: Callable[[Any], None] = nop_cb,
         around_goal: Around | None = None,
         around_cancel: Around | None = None,
     ) -> None:
-        if cancel_cb is None:
-            super().__init__(ns, action, goal_cb, auto_start=False)
-        else:
-            super().__init__(ns, action, goal_cb, cancel_cb, auto_start=False)
+        super().__init__(ns, action, goal_cb, cancel_cb, auto_start=False)
         self._around_goal = around_goal
         self._around_cancel = around_cancel
 
