@@ -7,7 +7,7 @@ stamp is where the simulation stands, and the arm brakes from there.
 The stack runs in the lockstep, held where each operation has settled (as a mission does), and
 as fast as the simulation can; the test joins the lockstep and holds the simulation half-way
 through the move while it sends the request (:class:`HalfwayHold`). The stop is then the same
-run after run at any load (0.170 s, 0.504-0.505 and 0.448 mrad, idle and beside eight busy
+run after run at any load (0.170 s, 0.504-0.506 and 0.448 mrad, idle and beside eight busy
 loops). Before the pause came ahead of the request, a loaded machine at real time once stopped
 0.35 s after it, and 10x real time 0.31 s (cancel) and 0.36 s (ArmStop)."""
 
