@@ -27,8 +27,11 @@ from ow_sim_bullet.sim_core import BulletSim
 from ow_sim_bullet.tool_tracking import TOOLS, WRIST_FT_LINK, ToolSnapshot
 from owl_msgs.msg import ArmEndEffectorForceTorque
 
-#: physics steps whose outputs are written together when running faster than real time.
-FLUSH_STEPS = 4
+#: physics steps whose outputs are written together when running faster than real time (a
+#: socket write wakes the subscriber and costs more than the messages: bench/sim_speed.py held at
+#: 84-85x with 4, 93-96x with 10, 102-104x with 25, 2026-11-25). Paced, held by a lockstep
+#: client (every 0.1 s of sim time by default), stepped or paused, they are written at once.
+FLUSH_STEPS = 25
 
 #: (topic, message class) of every output written with the wire publishers, in the order their
 #: queued messages are written: /clock first.
