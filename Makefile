@@ -10,7 +10,7 @@ setup:
 	@scripts/setup.sh
 
 demo: setup
-	@$(RUN) rosrun ow_mission mission
+	@$(RUN) rosrun ow_mission mission --wait-figures
 
 test: setup lint
 	@$(RUN) python -m pytest -n 2 --dist loadscope tests $(PYTEST_ARGS)

@@ -34,6 +34,7 @@ from PIL import Image
 from ow_lander.conversions import height_map_from_msg
 from ow_lander.model import URDF_PATH, LanderModel
 from ow_lander.operations import DOCK_CENTRE, POUR_TILT
+from ow_mission.figures import wait_for_figures
 from ow_mission.mission import MISSION_TELEMETRY_HZ
 from ow_mission.mission_config import DEFAULT_MISSION_FILE
 from ow_mission.report import image_links
@@ -72,12 +73,14 @@ MISSION_TIMEOUT_S = 900.0  # a hang fails the test instead of blocking the suite
 
 @dataclass
 class Run:
-    """One finished mission: exit code, output, run directory and its report.json."""
+    """One finished mission: exit code, output, run directory and its report.json (with the
+    figures drawn after the mission exited), and report.json as it was when it exited."""
 
     returncode: int
     output: str
     run_dir: Path
     report: dict[str, Any]
+    at_exit: dict[str, Any]
 
     @property
     def bags(self) -> list[Path]:
@@ -104,7 +107,9 @@ def _run_mission(directory: Path, **keys: Any) -> Run:
     assert len(runs) == 1, output
     report_file = runs[0] / "report.json"
     assert report_file.is_file(), output
-    return Run(proc.returncode, output, runs[0], json.loads(report_file.read_text()))
+    at_exit = json.loads(report_file.read_text())
+    report = wait_for_figures(runs[0], timeout_s=MISSION_TIMEOUT_S)
+    return Run(proc.returncode, output, runs[0], report, at_exit)
 
 
 def _messages(
@@ -447,6 +452,25 @@ def test_the_mission_succeeds_and_every_linked_image_exists(run):
         with Image.open(run_dir / still) as image:
             assert image.size == (1024, 768)
     assert report["figure_notes"] == {}
+
+
+def test_the_mission_exits_with_every_number_the_figures_show(mission):
+    """figures: after_exit (the default): report.json at the exit has the steps' energies,
+    the trench and the detector; the figures' process, drawing from the same bags, changes
+    none of them. The table printed at the exit shows the same energies."""
+    assert mission.at_exit["figures_pending"] is True
+    assert "figures_pending" not in mission.report
+    timed = {"figures", "figure_notes", "figures_seconds", "replay"}
+    final = {k: v for k, v in mission.report.items() if k not in timed}
+    assert {k: v for k, v in mission.at_exit.items() if k not in timed | {"figures_pending"}} == (
+        final
+    )
+    assert "figures: being drawn by process" in mission.output
+    for step in mission.report["steps"]:
+        row = next(
+            line for line in mission.output.splitlines() if line.startswith(step["step"] + " ")
+        )
+        assert f"{step['mechanical_energy_j']:.1f}" in row.split()
 
 
 def test_the_tables_energies_are_the_plots_labels(run):

@@ -30,6 +30,7 @@ def test_the_shipped_mission_file_is_valid_and_complete():
         ({"x": float("nan")}, "mission/x must be finite"),
         ({"x": "far"}, "mission/x must be a number"),
         ({"dig": "spiral"}, "mission/dig = 'spiral' is not one of linear, circular"),
+        ({"figures": "later"}, "mission/figures = 'later' is not one of after_exit, inline"),
         ({"discard": [1, 2]}, "mission/discard must be three numbers"),
         ({"discard": [1, 2, "up"]}, r"mission/discard\[2\] must be a number"),
         ({"seed": -3}, r"mission/seed = -3 is outside \[0, inf\]"),
@@ -101,5 +102,6 @@ def test_the_command_line_names_one_file_or_asks_for_help(tmp_path: Path):
     assert config_from_argv([str(mission), "__name:=mission"]).trench_depth == 0.05
     assert config_from_argv([]) == MissionConfig.load(DEFAULT_MISSION_FILE)
     assert config_from_argv(["--help"]) is None
+    assert config_from_argv([str(mission), "--wait-figures"]).trench_depth == 0.05
     with pytest.raises(ConfigError, match="one mission file at most, got 2"):
         config_from_argv(["a.yaml", "b.yaml"])

@@ -4,6 +4,7 @@ synthetic runs written as real split bags in tmp_path; no ROS master."""
 from __future__ import annotations
 
 import json
+import subprocess
 from datetime import datetime
 from pathlib import Path
 
@@ -14,7 +15,9 @@ import pytest
 import ow_mission.report as report_module
 from ow_lander.description import URDF_PATH
 from ow_lander.terrain import HeightMap
-from ow_mission.errors import ReplayError
+from ow_mission.errors import FiguresError, ReplayError
+from ow_mission.figures import figures_status, make_figures, start_figures, wait_for_figures
+from ow_mission.figures import main as figures_main
 from ow_mission.plots import DEPTH_TOLERANCE_M, TrenchGeometry, detector_trace, trench_profile
 from ow_mission.recording import read_recording
 from ow_mission.render import Camera, camera_axes, fit_camera
@@ -407,6 +410,90 @@ def test_a_report_with_renders_lists_its_figures_in_order_with_the_replay_last(t
     for link in image_links(markdown):
         assert (tmp_path / link).is_file(), link
     assert image_links(markdown)[-1] == "replay.gif"
+
+
+def _numbers(document: dict) -> dict:
+    """report.json without what only the figures add or what is timed."""
+    skip = {"figures", "figure_notes", "figures_pending", "report_seconds", "figures_seconds"}
+    return {k: v for k, v in json.loads(json.dumps(document)).items() if k not in skip}
+
+
+def test_the_numbers_written_before_the_figures_are_the_reports(tmp_path):
+    """figures: after_exit: the mission writes the numbers without drawing (report.json marked
+    pending, no image); completing it draws the figures and changes no number."""
+    _write_bags(tmp_path / "bags")
+    first = write_run_report(tmp_path, _document(), renders=False, draw=False)
+    assert first["figures_pending"] is True
+    assert first["figures"] == {}
+    assert list(first["figure_notes"]) == ["battery"]  # what the bags cannot show, as ever
+    assert list(tmp_path.glob("*.png")) == []
+    markdown = (tmp_path / "report.md").read_text()
+    assert image_links(markdown) == []
+    assert "--wait" in markdown and "figures.log" in markdown
+    assert first["trench"]["worked"] is True and "faults" in first
+    assert first["guarded_move_detector"]["contact_s"] is not None
+    numbers = _numbers(first)
+
+    done = write_run_report(tmp_path, json.loads((tmp_path / "report.json").read_text()))
+    assert "figures_pending" not in done
+    assert set(done["figures"]) >= {"power", "trench_profile", "guarded_move", "replay"}
+    assert done["report_seconds"] == first["report_seconds"]  # the mission's; this one's:
+    assert done["figures_seconds"] > 0
+    assert _numbers({k: v for k, v in done.items() if k != "replay"}) == numbers
+    assert done["figure_notes"] == first["figure_notes"]
+    assert "--wait" not in (tmp_path / "report.md").read_text()
+
+
+def test_the_figures_process_draws_them_and_a_waiter_gets_them(tmp_path):
+    _write_bags(tmp_path / "bags")
+    write_run_report(tmp_path, _document(), renders=False, draw=False)
+    proc = start_figures(tmp_path, renders=False)
+    assert figures_status(tmp_path) in ("drawing", "drawn")
+    document = wait_for_figures(tmp_path, timeout_s=120.0)
+    assert proc.wait(timeout=60.0) == 0
+    assert figures_status(tmp_path) == "drawn"
+    assert list(document["figures"]) == ["power", "trench_profile", "guarded_move"]
+    assert not (tmp_path / "figures.pid").exists()
+    markdown = (tmp_path / "report.md").read_text()
+    assert image_links(markdown) == list(document["figures"].values())
+    assert figures_main(["--wait", str(tmp_path)]) == 0
+
+
+def test_pending_figures_nobody_draws_are_an_error_naming_the_log(tmp_path):
+    _write_bags(tmp_path / "bags")
+    write_run_report(tmp_path, _document(), renders=False, draw=False)
+    gone = subprocess.Popen(["true"])
+    gone.wait()
+    (tmp_path / "figures.pid").write_text(f"{gone.pid}\n")
+    assert figures_status(tmp_path) == "lost"
+    with pytest.raises(FiguresError, match=r"no process is making them.*figures\.log"):
+        wait_for_figures(tmp_path)
+    assert figures_main(["--wait", str(tmp_path)]) == 1
+    with subprocess.Popen(["sleep", "30"]) as slow:
+        (tmp_path / "figures.pid").write_text(f"{slow.pid}\n")
+        try:
+            with pytest.raises(FiguresError, match=r"not drawn within 0.3 s"):
+                wait_for_figures(tmp_path, timeout_s=0.3)
+        finally:
+            slow.kill()
+
+
+def test_a_figures_process_that_fails_says_so_in_the_report(tmp_path, monkeypatch):
+    _write_bags(tmp_path / "bags")
+    write_run_report(tmp_path, _document(), renders=False, draw=False)
+    (tmp_path / "figures.pid").write_text("1\n")
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("no display")
+
+    monkeypatch.setattr(report_module, "_figures_from_bags", broken)
+    assert make_figures(tmp_path, renders=False) == 1
+    document = json.loads((tmp_path / "report.json").read_text())
+    assert "figures_pending" not in document
+    assert "RuntimeError: no display" in document["figure_notes"]["figures"]
+    assert "RuntimeError: no display" in (tmp_path / "report.md").read_text()
+    assert not (tmp_path / "figures.pid").exists()
+    assert figures_status(tmp_path) == "drawn"
 
 
 def test_a_replay_needs_a_process_to_render(run_dir, tmp_path):

@@ -6,7 +6,14 @@ from datetime import datetime
 import matplotlib
 import pytest
 
-from ow_power.analysis import analyze, energy_label, plot_power, stack_labels, window_figures
+from ow_power.analysis import (
+    analyze,
+    energy_label,
+    plot_power,
+    stack_labels,
+    window_figures,
+    window_labels,
+)
 from ow_power.bagwriter import SplitBagWriter
 from ow_power.synthetic import Segment, write_run
 
@@ -54,6 +61,14 @@ def test_windows_given_by_the_caller_are_labelled_with_their_own_energies(result
         figures = window_figures(result.power, label.start_s, label.end_s)
         assert label.mechanical_energy_j == figures["mechanical_energy_j"]
         assert label.mechanical_energy_abs_j == figures["mechanical_energy_abs_j"]
+
+
+def test_the_labels_without_the_plot_are_the_plots(result, tmp_path):
+    """A mission that leaves its figures for later takes its energies from window_labels."""
+    windows = [("first half", 10.0, 13.0), ("second", 13.0, 17.0)]
+    assert window_labels(result, windows) == plot_power(result, tmp_path / "p.png", windows=windows)
+    assert window_labels(result) == plot_power(result, tmp_path / "q.png")
+    assert not (tmp_path / "r.png").exists()
 
 
 def test_the_run_is_read_from_every_split_bag(result):

@@ -15,3 +15,7 @@ class HarnessError(OwMissionError, RuntimeError):
 
 class ReplayError(OwMissionError):
     """The bags cannot be read, or lack what a figure needs."""
+
+
+class FiguresError(OwMissionError):
+    """A run's figures, made after its mission, are not there and will not come."""

@@ -17,6 +17,7 @@ from typing import Any
 from ow_lander.description import STAMP_SLACK_S
 from ow_mission.bag_prefetch import BagPrefetch
 from ow_mission.fault_schedule import AppliedFault
+from ow_mission.figures import FiguresProcess, start_figures
 from ow_mission.mission_config import MissionConfig
 from ow_mission.node_config import SERVE_FAULTS, STACK_NODES, stack_parameters
 from ow_power.config import BATTERY_TOPICS, TELEMETRY_TOPICS
@@ -246,25 +247,39 @@ STEPS: tuple[Step, ...] = (
 )
 
 
-def write_report(report: MissionReport, prefetch: BagPrefetch | None = None) -> None:
-    """Write ``report.json``, ``report.md`` and the figures into the run directory, all made
-    from the run's bags after the run (:func:`ow_mission.report.write_run_report`; ``prefetch``:
-    the files closed before the stack stopped, read while it stopped).
+def write_report(
+    report: MissionReport, prefetch: BagPrefetch | None = None
+) -> FiguresProcess | None:
+    """Write ``report.json`` and ``report.md`` into the run directory, made from the run's bags
+    after the run (:func:`ow_mission.report.write_run_report`; ``prefetch``: the files closed
+    before the stack stopped, read while it stopped), with the figures (``figures: inline``)
+    or without them, their process started (``after_exit``: the numbers are the same).
 
     The steps' energies and peaks become the bags' (the numbers the power plot labels), so the
     table printed afterwards (:meth:`MissionReport.table`) agrees with ``report.md``.
+
+    Returns:
+        The process making the figures (``after_exit``), or None.
     """
     from ow_mission.report import write_run_report
 
     document = report.to_json()
     document["config"]["terrain_spec"] = report.config.terrain_spec
+    after_exit = report.config.figures == "after_exit"
     written = write_run_report(
-        report.run_dir, document, renders=report.config.renders, prefetch=prefetch
+        report.run_dir,
+        document,
+        renders=report.config.renders,
+        prefetch=prefetch,
+        draw=not after_exit,
     )
     for step, row in zip(report.steps, written["steps"], strict=True):
         step.mechanical_energy_j = float(row["mechanical_energy_j"])
         step.energy_wh = float(row["energy_wh"])
         step.peak_power_w = float(row["peak_power_w"])
+    if not after_exit:
+        return None
+    return start_figures(report.run_dir, report.config.renders)
 
 
 #: The fault status topics (owl_msgs), in the report's order.

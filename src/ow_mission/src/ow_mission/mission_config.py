@@ -29,7 +29,13 @@ DEFAULT_MISSION_FILE: Path = Path(__file__).resolve().parents[2] / "config" / "m
 MAX_STEP_DEPTH = min(MAX_GRIND_DEPTH, MAX_SCOOP_DEPTH)
 
 #: How the mission is started.
-USAGE = f"usage: rosrun ow_mission mission [mission.yaml]   (default: {DEFAULT_MISSION_FILE})"
+#: The command-line flag that makes the mission wait for its figures (``make demo``).
+WAIT_FIGURES = "--wait-figures"
+USAGE = (
+    f"usage: rosrun ow_mission mission [mission.yaml] [{WAIT_FIGURES}]   "
+    f"(default: {DEFAULT_MISSION_FILE}; {WAIT_FIGURES}: exit once the report's figures, made "
+    "after the mission, are drawn)"
+)
 
 
 @dataclass(frozen=True)
@@ -58,6 +64,9 @@ class MissionConfig:
         step_timeout_s: s of wall time one service call may take.
         output_dir: where ``<timestamp>/`` run directories go (relative to the workspace).
         renders: take headless renders of the arm at key moments.
+        figures: "after_exit": the report's numbers are written before the mission exits and
+            its figures by a process of their own afterwards (:mod:`ow_mission.figures`);
+            "inline": all of the report before it exits.
         node_params: extra private parameters per node name (sim, arm_services, power, record).
         interface: "services" (the paper's) or "actions" (OceanWATERS' owl_msgs actions,
             :mod:`ow_mission.action_steps`): how the steps are called.
@@ -85,6 +94,7 @@ class MissionConfig:
     step_timeout_s: float = 300.0
     output_dir: str = "runs"
     renders: bool = True
+    figures: str = "after_exit"
     node_params: dict[str, dict[str, Any]] = field(default_factory=dict)
     interface: str = "services"
     faults: tuple[ScheduledFault, ...] = ()
@@ -162,6 +172,7 @@ class MissionConfig:
             ),
             output_dir=p.string("output_dir", d.output_dir),
             renders=p.boolean("renders", d.renders),
+            figures=p.string("figures", d.figures, choices=("after_exit", "inline")),
             node_params={str(k): dict(v) for k, v in node_params.items()},
             interface=p.string("interface", d.interface, choices=("services", "actions")),
             faults=parse_schedule(p.raw("faults", []), MISSION_STEPS, p.problem),
@@ -196,12 +207,13 @@ class MissionConfig:
 
 def config_from_argv(argv: Sequence[str]) -> MissionConfig | None:
     """The mission a command line names (the default file when none); None when it asks for
-    help. ROS remapping arguments (``a:=b``, added by rosrun and roslaunch) are ignored.
+    help. ROS remapping arguments (``a:=b``, added by rosrun and roslaunch) and
+    :data:`WAIT_FIGURES` are ignored.
 
     Raises:
         ConfigError: more than one file, or the file fails to load (see :meth:`MissionConfig.load`).
     """
-    args = [a for a in argv if ":=" not in a]
+    args = [a for a in argv if ":=" not in a and a != WAIT_FIGURES]
     if args and args[0] in ("-h", "--help"):
         return None
     if len(args) > 1:

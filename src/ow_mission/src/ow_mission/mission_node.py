@@ -25,6 +25,7 @@ from ow_mission.action_client_node import ActionStepClient
 from ow_mission.bag_prefetch import BagPrefetch
 from ow_mission.errors import ConfigError
 from ow_mission.fault_schedule_node import FaultScheduleRunner
+from ow_mission.figures import FiguresProcess, tell_figures
 from ow_mission.mission import (
     DRAIN_TIMEOUT_S,
     STEPS,
@@ -36,7 +37,7 @@ from ow_mission.mission import (
     stack_processes,
     write_report,
 )
-from ow_mission.mission_config import USAGE, MissionConfig, config_from_argv
+from ow_mission.mission_config import USAGE, WAIT_FIGURES, MissionConfig, config_from_argv
 from ow_mission.report import preload, read_report_messages
 from ow_mission.stack import (
     HarnessError,
@@ -69,6 +70,7 @@ class MissionRunner:
         self._faults: FaultScheduleRunner | None = None
         self._drain: dict[str, float] = {}
         self._hold = False  # the stack holds the simulation between steps (lockstep)
+        self.figures: FiguresProcess | None = None  # drawing them after the mission (after_exit)
 
     # ------------------------------------------------------------------------- ROS callbacks
     def _on_clock(self, msg: Any) -> None:
@@ -135,7 +137,7 @@ class MissionRunner:
         except (HarnessError, ConfigError) as exc:
             self.report.error = str(exc)
         self.report.wall_time_s = time.monotonic() - wall0
-        write_report(self.report, prefetch)
+        self.figures = write_report(self.report, prefetch)
         return self.report
 
     def _start(self, stack: RosStack) -> list[NodeProcess]:
@@ -229,8 +231,9 @@ class MissionRunner:
 
 def main(argv: list[str] | None = None) -> int:
     """``rosrun ow_mission mission [file]``: run a mission, print the table; 0 on success."""
+    args = sys.argv[1:] if argv is None else argv
     try:
-        config = config_from_argv(sys.argv[1:] if argv is None else argv)
+        config = config_from_argv(args)
     except ConfigError as exc:
         print(f"mission: {exc}", file=sys.stderr)
         return 2
@@ -243,5 +246,5 @@ def main(argv: list[str] | None = None) -> int:
     print(report.table())
     if report.recording_note:
         print(f"[mission] {report.recording_note}")
-    print(f"[mission] report: {runner.run_dir / 'report.md'}")
+    tell_figures(runner.figures, runner.run_dir, WAIT_FIGURES in args, print)
     return 0 if report.success else 1

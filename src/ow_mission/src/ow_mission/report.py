@@ -20,6 +20,7 @@ import functools
 import gc
 import json
 import math
+import os
 import sys
 import time
 import traceback
@@ -51,6 +52,8 @@ class Figures:
     files: dict[str, str] = field(default_factory=dict)
     captions: dict[str, str] = field(default_factory=dict)
     notes: dict[str, str] = field(default_factory=dict)
+    #: False: work out the numbers the figures show (into the document) without drawing them.
+    draw: bool = True
 
 
 #: Processes rendering the stills and the replay: the stills in one, the replay in the other,
@@ -122,13 +125,17 @@ def read_report_messages(bags: Sequence[Path]) -> TopicMessages:
 def energies_from_bags(
     run_dir: Path, document: dict[str, Any], analysis: Analysis, figures: Figures
 ) -> None:
-    """``power.png``, and each step's energies and peaks from the bags' power ``analysis``
-    (:func:`ow_power.analysis.analyze_messages`) written into ``document['steps']`` (the same
-    numbers the plot labels)."""
-    from ow_power.analysis import plot_power
+    """``power.png`` (when ``figures.draw``), and each step's energies and peaks from the bags'
+    power ``analysis`` (:func:`ow_power.analysis.analyze_messages`) written into
+    ``document['steps']`` (the same numbers the plot labels)."""
+    from ow_power.analysis import plot_power, window_labels
 
     bags = analysis.bags
-    labels = plot_power(analysis, run_dir / "power.png", windows=step_windows(document))
+    windows = step_windows(document)
+    if figures.draw:
+        labels = plot_power(analysis, run_dir / "power.png", windows=windows)
+    else:
+        labels = window_labels(analysis, windows)
     for step, label in zip(document["steps"], labels, strict=True):
         window = analysis_window(analysis, label.start_s, label.end_s)
         step.update(
@@ -141,6 +148,8 @@ def energies_from_bags(
         )
     document["energy_source"] = f"bags ({analysis.source}), P0 = {analysis.auxiliary_power_w} W"
     document["auxiliary_power_w"] = analysis.auxiliary_power_w
+    if not figures.draw:
+        return
     figures.files["power"] = "power.png"
     figures.captions["power"] = (
         f"Arm mechanical power over the mission from {len(bags)} bag(s): signed sum tau*omega "
@@ -159,7 +168,8 @@ def analysis_window(analysis: Any, start_s: float, end_s: float) -> dict[str, fl
 def trench_figure(
     run_dir: Path, document: dict[str, Any], recording: Recording, figures: Figures
 ) -> str | None:
-    """``trench_profile.png`` and ``document['trench']``; a note when it cannot be made."""
+    """``trench_profile.png`` (when ``figures.draw``) and ``document['trench']``; a note when
+    it cannot be made."""
     from ow_mission.plots import plot_trench, trench_profile
 
     if not any(s["step"] == "grind" for s in document["steps"]):
@@ -168,7 +178,6 @@ def trench_figure(
         return "no /sim/terrain in the bags: no trench profile."
     before, after = recording.terrains[0][1], recording.terrains[-1][1]
     profile = trench_profile(before, after, document["config"], document.get("ground_z"))
-    plot_trench(profile, run_dir / "trench_profile.png")
     document["trench"] = {
         "worked": profile.worked,
         "floor_z": profile.floor_z,
@@ -179,6 +188,9 @@ def trench_figure(
         "requested_bottom_z": profile.requested_bottom_z,
         "verdict": profile.verdict(),
     }
+    if not figures.draw:
+        return None
+    plot_trench(profile, run_dir / "trench_profile.png")
     figures.files["trench_profile"] = "trench_profile.png"
     figures.captions["trench_profile"] = (
         "The trench from the bags: top view of how much the terrain was lowered (last "
@@ -192,7 +204,8 @@ def trench_figure(
 def guarded_move_figure(
     run_dir: Path, document: dict[str, Any], recording: Recording, figures: Figures
 ) -> str | None:
-    """``guarded_move.png`` (the paper's Figure 11); a note when it cannot be made."""
+    """``guarded_move.png`` (the paper's Figure 11; when ``figures.draw``) and
+    ``document['guarded_move_detector']``; a note when they cannot be made."""
     from ow_mission.plots import detector_trace, plot_guarded_move
 
     step = next((s for s in document["steps"] if s["step"] == "guarded_move"), None)
@@ -212,7 +225,6 @@ def guarded_move_figure(
             "no /arm/ground_detector in the bags and no ground contact to replay the detector "
             "against: no detector figure."
         )
-    plot_guarded_move(trace, run_dir / "guarded_move.png")
     source = (
         "recorded on /arm/ground_detector"
         if trace.source == "recorded"
@@ -228,6 +240,9 @@ def guarded_move_figure(
         "contact_s": trace.contact_s,
         "result_s": trace.result_s,
     }
+    if not figures.draw:
+        return None
+    plot_guarded_move(trace, run_dir / "guarded_move.png")
     figures.files["guarded_move"] = "guarded_move.png"
     figures.captions["guarded_move"] = (
         f"Guarded move ground detection (the paper's Figure 11), {source}: signal, moving "
@@ -307,8 +322,8 @@ def faults_section(
     run_dir: Path, document: dict[str, Any], messages: TopicMessages, figures: Figures
 ) -> str | None:
     """``document['faults']`` (:func:`ow_mission.fault_report.fault_summary`) and
-    ``battery.png`` from the bags' ``messages`` (none without bags); a note when they have no
-    battery data (the section is still made)."""
+    ``battery.png`` (when ``figures.draw``) from the bags' ``messages`` (none without bags); a
+    note when they have no battery data (the section is still made)."""
     from ow_mission.fault_report import (
         RUL_TOPIC,
         SOC_TOPIC,
@@ -321,6 +336,8 @@ def faults_section(
     document["faults"] = fault_summary(document, recording)
     if not recording.soc and not recording.rul:
         return f"no {SOC_TOPIC} or {RUL_TOPIC} in the bags: no battery figure."
+    if not figures.draw:
+        return None
     plot_battery(recording, document["faults"], step_windows(document), run_dir / "battery.png")
     figures.files["battery"] = "battery.png"
     figures.captions["battery"] = (
@@ -403,7 +420,7 @@ def _figures_from_bags(
 
     for topic in (JOINT_STATES_TOPIC, POWER_TOPIC):
         messages.pop(topic, None)
-    if recording is not None and renders:
+    if recording is not None and renders and figures.draw:
         _attempt(early, "replay", functools.partial(start, recording))
     try:
         if analysis is not None:
@@ -458,6 +475,7 @@ def write_run_report(
     document: dict[str, Any],
     renders: bool = True,
     prefetch: BagPrefetch | None = None,
+    draw: bool = True,
 ) -> dict[str, Any]:
     """Make the figures from ``run_dir/bags``, then write ``report.json`` and ``report.md``.
 
@@ -469,12 +487,17 @@ def write_run_report(
         renders: also make the stills and the replay (they take most of the time).
         prefetch: the bag files closed before the run ended, read meanwhile (the mission's
             :class:`~ow_mission.bag_prefetch.BagPrefetch`); None reads every file here.
+        draw: False writes the numbers only (energies, trench, detector, faults: the same as
+            with the figures) and marks the figures pending (``figures_pending``), for
+            :func:`ow_mission.figures.start_figures` to make after the mission. A
+            document marked pending is completed: its time goes to ``figures_seconds``.
 
     Returns:
         ``document`` as written.
     """
     run_dir = Path(run_dir)
-    figures = Figures()
+    figures = Figures(draw=draw)
+    completing = bool(document.pop("figures_pending", False)) and draw
     wall0 = time.monotonic()
     bags = sorted((run_dir / "bags").glob("*.bag"))
     # Python's cyclic collector paused while the bags' messages are held (66 000 objects and
@@ -498,10 +521,23 @@ def write_run_report(
             gc.enable()
     document["figures"] = dict(figures.files)
     document["figure_notes"] = dict(figures.notes)
-    document["report_seconds"] = time.monotonic() - wall0
-    (run_dir / "report.json").write_text(json.dumps(document, indent=2, default=_jsonable) + "\n")
-    (run_dir / "report.md").write_text(markdown(run_dir, document, figures))
+    if not draw:
+        document["figures_pending"] = True
+    document["figures_seconds" if completing else "report_seconds"] = time.monotonic() - wall0
+    write_report_files(run_dir, document, markdown(run_dir, document, figures))
     return document
+
+
+def write_report_files(run_dir: Path, document: Mapping[str, Any], markdown_text: str) -> None:
+    """``report.json`` and ``report.md``, each replaced at once (written aside, then renamed):
+    a reader never sees half a file, even while the figures' process rewrites them."""
+    for name, text in (
+        ("report.json", json.dumps(document, indent=2, default=_jsonable) + "\n"),
+        ("report.md", markdown_text),
+    ):
+        part = run_dir / f".{name}.part"
+        part.write_text(text)
+        os.replace(part, run_dir / name)
 
 
 def _jsonable(value: Any) -> Any:
@@ -586,6 +622,13 @@ def markdown(run_dir: Path, document: Mapping[str, Any], figures: Figures) -> st
         lines += [f"![{role}]({rel})", "", f"*{figures.captions.get(role, rel)}*", ""]
     for note in figures.notes.values():
         lines += [f"> {note}", ""]
+    if document.get("figures_pending"):
+        lines += [
+            "> The figures are being made from the bags by a process of their own, started as "
+            "the mission exited (its output: `figures.log`); it rewrites this report with them. "
+            "`python -m ow_mission.figures --wait <run dir>` waits for it.",
+            "",
+        ]
     lines += [
         "Files: `bags/` (ROS 1 bags: /power, /joint_states, /arm/operation, /sim/terrain, ...), "
         "`trajectories/` (the planned CSV trajectories), `ros/` (node logs). Rebuild this report "

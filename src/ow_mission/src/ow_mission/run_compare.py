@@ -26,6 +26,7 @@ WALL_CLOCK_KEYS = frozenset(
         "real_time_factor",
         "peak_memory_mb",
         "report_seconds",
+        "figures_seconds",
         "planning_time_s",
         "cpu_seconds_to_make",
         "seconds_to_make",

@@ -506,6 +506,42 @@ def energy_label(name: str, signed_j: float, abs_j: float) -> str:
     return f"{name}\n{signed_j:.1f} J signed\n{abs_j:.1f} J |.|"
 
 
+def window_labels(
+    result: Analysis, windows: Sequence[tuple[str, float, float]] | None = None
+) -> list[PlotLabel]:
+    """The labels :func:`plot_power` draws, without drawing: each window's energies and peaks
+    (:func:`window_figures`) and its text.
+
+    Args:
+        result: output of :func:`analyze`.
+        windows: (name, start s, end s), e.g. a mission's steps (default: the operations of
+            ``/arm/operation``).
+    """
+    if windows is None:
+        windows = [
+            (str(op.name), float(op.start_s), float(op.end_s))
+            for op in result.summary.itertuples(index=False)
+        ]
+    labels = []
+    for name, start, end in windows:
+        figures = window_figures(result.power, start, end)
+        labels.append(
+            PlotLabel(
+                name,
+                start,
+                end,
+                figures["mechanical_energy_j"],
+                figures["mechanical_energy_abs_j"],
+                figures["peak_power_w"],
+                figures["peak_total_power_w"],
+                energy_label(
+                    name, figures["mechanical_energy_j"], figures["mechanical_energy_abs_j"]
+                ),
+            )
+        )
+    return labels
+
+
 def plot_power(
     result: Analysis,
     png_path: Path | str,
@@ -537,28 +573,7 @@ def plot_power(
         warnings.simplefilter("ignore", UserWarning)
         import matplotlib.pyplot as plt
 
-    if windows is None:
-        windows = [
-            (str(op.name), float(op.start_s), float(op.end_s))
-            for op in result.summary.itertuples(index=False)
-        ]
-    labels = []
-    for name, start, end in windows:
-        figures = window_figures(result.power, start, end)
-        labels.append(
-            PlotLabel(
-                name,
-                start,
-                end,
-                figures["mechanical_energy_j"],
-                figures["mechanical_energy_abs_j"],
-                figures["peak_power_w"],
-                figures["peak_total_power_w"],
-                energy_label(
-                    name, figures["mechanical_energy_j"], figures["mechanical_energy_abs_j"]
-                ),
-            )
-        )
+    labels = window_labels(result, windows)
     t0 = float(result.power["t_s"].iloc[0])
     t = result.power["t_s"].to_numpy() - t0
     fig, ax = plt.subplots(figsize=(12, 5.5), dpi=110)
