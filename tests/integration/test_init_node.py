@@ -1,8 +1,11 @@
 """``ow_lander.init_node``: a node's shutdown wakes rospy's registration thread once rospy's
-shutdown flag is up, instead of leaving it to its 0.5 s wait (every node stopped ~0.5 s later).
+shutdown flag is up, instead of leaving it to its 0.5 s wait (every node stopped ~0.5 s later);
+``spin`` returns when the node shuts down; ``exit_now`` ends the process without Python's
+teardown, its output and logs written.
 
-The test watches the thread's waits, not the clock: with bare ``rospy.init_node`` one of them
-runs out its timeout after the flag is up; with ``init_node`` none does."""
+The tests watch the waits, not the clock: with bare ``rospy.init_node`` one of the registration
+thread's waits runs out its timeout after the flag is up; with ``init_node`` none does. ``spin``'s
+last wait is woken by the shutdown, not run out."""
 
 import os
 import subprocess
@@ -54,3 +57,62 @@ def test_a_node_s_registration_thread_is_woken_when_it_shuts_down(ros_master, ho
         check=True,
     ).stdout.split()
     assert out == [waited_out]
+
+
+SPIN_CHILD = """
+import os, signal, threading
+import rospy
+import ow_lander.init_node as init_node
+
+waits = []
+
+class Watched(threading.Event):
+    def wait(self, timeout=None):
+        woken = super().wait(timeout)
+        waits.append(woken)
+        return woken
+
+init_node.threading.Event = Watched
+init_node.init_node("spin_test")  # rospy's signal handlers, as a node has them
+threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGINT)).start()
+init_node.spin()
+print(rospy.core.is_shutdown(), waits[-1])
+"""
+
+
+def test_spin_returns_when_a_signal_shuts_the_node_down(ros_master):
+    out = subprocess.run(
+        [sys.executable, "-c", SPIN_CHILD],
+        env=dict(os.environ, ROS_MASTER_URI=ros_master.uri),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    ).stdout.split()
+    assert out == ["True", "True"]  # shut down, and the last wait woken, not run out
+
+
+EXIT_CHILD = """
+import atexit, logging, sys
+from ow_lander.init_node import exit_now
+
+logging.basicConfig(filename=sys.argv[1], level=logging.INFO)
+atexit.register(lambda: print("teardown ran"))
+logging.getLogger("node").info("last words")
+print("written", end="")
+exit_now(3)
+"""
+
+
+def test_exit_now_writes_the_output_and_logs_and_skips_the_teardown(tmp_path):
+    log = tmp_path / "node.log"
+    proc = subprocess.run(
+        [sys.executable, "-c", EXIT_CHILD, str(log)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert proc.returncode == 3
+    assert proc.stdout == "written"  # flushed; the atexit handler never ran
+    assert "last words" in log.read_text()

@@ -92,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     """Start the node; return a non-zero exit code on a configuration error."""
     import rospy
 
-    from ow_lander.init_node import init_node
+    from ow_lander.init_node import init_node, spin
 
     init_node("dem_bridge", argv=argv if argv is not None else sys.argv)
     try:
@@ -106,5 +106,5 @@ def main(argv: list[str] | None = None) -> int:
         f"dem_bridge: model {config.model!r}; "
         + ", ".join(f"{t.state_topic} -> {t.wrench_topic}" for t in config.tools)
     )
-    rospy.spin()
+    spin()
     return 0

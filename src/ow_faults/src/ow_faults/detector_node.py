@@ -16,7 +16,7 @@ from ow_faults.errors import FaultError
 from ow_faults.listener_node import FaultsListener
 from ow_lander.actions import ARM_ACTIONS
 from ow_lander.conversions import EVERY_MESSAGE
-from ow_lander.init_node import init_node
+from ow_lander.init_node import init_node, spin
 from ow_msgs.msg import JointStatesFlag
 from owl_msgs.msg import (
     ArmEndEffectorForceTorque,
@@ -158,7 +158,7 @@ def main() -> int:
         "detector: publishing /arm_faults_status, /pan_tilt_faults_status, "
         "/power_faults_status, /system_faults_status"
     )
-    rospy.spin()
+    spin()
     return 0
 
 

@@ -13,7 +13,7 @@ from ow_faults.errors import FaultError
 from ow_faults.injection import FaultSet
 from ow_faults.server_node import CheckedServer
 from ow_lander.fault_reaction import CHANGES_TOPIC
-from ow_lander.init_node import init_node
+from ow_lander.init_node import init_node, spin
 from ow_msgs.msg import FaultChange
 from ow_msgs.srv import LockstepStatus
 
@@ -108,7 +108,7 @@ def main() -> int:
         return 1
     FaultsServer(faults)
     rospy.loginfo(f"faults: ready; injected at start: {faults.active() or 'none'}")
-    rospy.spin()
+    spin()
     return 0
 
 

@@ -18,7 +18,7 @@ from ow_lander.actions_node import ArmActions
 from ow_lander.config import ArmServicesConfig
 from ow_lander.errors import ConfigError, OwLanderError, TrajectoryError
 from ow_lander.execution_node import ArmExecutor
-from ow_lander.init_node import init_node
+from ow_lander.init_node import init_node, spin
 from ow_lander.model import LanderModel
 from ow_lander.operations import Operations
 from ow_lander.planning import ArmPlanner
@@ -224,4 +224,4 @@ def main() -> None:
     except (ConfigError, TrajectoryError) as error:
         rospy.logfatal("arm_services: %s", error)
         sys.exit(1)
-    rospy.spin()
+    spin()

@@ -18,7 +18,7 @@ from ow_lander.description import ANTENNA_JOINTS
 from ow_lander.errors import GoalError
 from ow_lander.faults_watch_node import FaultWatch
 from ow_lander.feedback_node import StampedFeedback
-from ow_lander.init_node import init_node
+from ow_lander.init_node import init_node, spin
 from ow_lander.pan_tilt import AntennaPointing, MoveWatch, check_joints_goal
 from owl_msgs.msg import (
     PanTiltMoveCartesianAction,
@@ -242,4 +242,4 @@ def main() -> None:
     init_node("pan_tilt")
     PanTiltNode()
     rospy.loginfo("pan_tilt: PanTiltMoveJoints and PanTiltMoveCartesian ready")
-    rospy.spin()
+    spin()

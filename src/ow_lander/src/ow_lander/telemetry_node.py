@@ -13,7 +13,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
 from ow_lander.errors import ConfigError
-from ow_lander.init_node import init_node
+from ow_lander.init_node import init_node, spin
 from ow_lander.telemetry import (
     ARM_POSE_FRAME,
     RateGate,
@@ -158,4 +158,4 @@ def main() -> None:
 
     rospy.on_shutdown(report)
     rospy.loginfo("telemetry: publishing OceanWATERS' joint telemetry from /joint_states")
-    rospy.spin()
+    spin()

@@ -34,7 +34,7 @@ from ow_faults.faults_node import FaultsServer, hosted_server
 from ow_lander import errors as lander_errors
 from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.description import URDF_PATH
-from ow_lander.init_node import init_node
+from ow_lander.init_node import init_node, spin
 from ow_lander.telemetry import TelemetryConfig
 from ow_lander.telemetry_node import TelemetryNode
 from ow_mission.errors import ConfigError
@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     serving = " and the /faults server" if rospy.get_param(f"~{SERVE_FAULTS}", False) else ""
     rospy.loginfo(f"monitors: power, battery, telemetry, viz, the fault detector{serving} running")
-    rospy.spin()
+    spin()
     return 0
 
 

@@ -14,7 +14,7 @@ from ow_faults.errors import FaultError
 from ow_faults.injection import FaultSet
 from ow_faults.listener_node import FaultsListener
 from ow_lander.conversions import EVERY_MESSAGE
-from ow_lander.init_node import init_node
+from ow_lander.init_node import init_node, spin
 from ow_msgs.msg import Power
 from ow_power.battery import Battery
 from ow_power.battery_faults import PowerFaults
@@ -177,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{state.voltage_v:.2f} V, {state.temperature_c:.1f} degC, "
         f"update every {config.period_s:g} s of simulation time"
     )
-    rospy.spin()
+    spin()
     return 0
 
 

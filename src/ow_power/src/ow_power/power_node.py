@@ -9,7 +9,7 @@ import rospy
 from sensor_msgs.msg import JointState
 
 from ow_lander.conversions import EVERY_MESSAGE
-from ow_lander.init_node import init_node
+from ow_lander.init_node import init_node, spin
 from ow_msgs.msg import Power
 from ow_power.config import PowerConfig
 from ow_power.conversions import joint_state_fields, power_message
@@ -97,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
         f"power: P0 {config.auxiliary_power_w} W, efficiency {config.motor_efficiency}, "
         f"joints {list(config.joints) or 'all'}"
     )
-    rospy.spin()
+    spin()
     return 0
 
 

@@ -18,7 +18,7 @@ from ow_dem_bridge.api import REMOTE_MODEL_NAME
 from ow_dem_bridge.remote_node import make_remote_model
 from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.description import URDF_PATH
-from ow_lander.init_node import init_node
+from ow_lander.init_node import init_node, spin
 from ow_lander.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.srv import SetTerrain, SetTerrainResponse, StepSimulation, StepSimulationResponse
@@ -247,4 +247,4 @@ def main() -> None:
         config.real_time_factor,
         config.terrain,
     )
-    rospy.spin()
+    spin()

@@ -18,7 +18,7 @@ from visualization_msgs.msg import Marker
 from ow_lander.conversions import height_map_from_msg
 from ow_lander.description import BASE_FRAME, URDF_PATH
 from ow_lander.errors import TerrainError
-from ow_lander.init_node import init_node
+from ow_lander.init_node import init_node, spin
 from ow_lander.model import LanderModel
 from ow_msgs.msg import GuardedMoveResult, HeightMap
 from ow_viz.config import VizConfig
@@ -162,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
         f"viz: robot_description set, {config.world_frame} -> {BASE_FRAME} published; "
         "drawing /sim/terrain, /sim/joint_trajectory and /guarded_move_result"
     )
-    rospy.spin()
+    spin()
     return 0
 
 
