@@ -48,15 +48,19 @@ print(any(not notified and after_flag for notified, after_flag in Watched.outcom
 
 @pytest.mark.parametrize(("how", "waited_out"), [("ours", "False"), ("bare", "True")])
 def test_a_node_s_registration_thread_is_woken_when_it_shuts_down(ros_master, how, waited_out):
-    out = subprocess.run(
-        [sys.executable, "-c", CHILD, how],
-        env=dict(os.environ, ROS_MASTER_URI=ros_master.uri),
+    assert _words(ros_master, CHILD, how) == [waited_out]
+
+
+def _words(master, code: str, *args: str) -> list[str]:
+    """What a Python child running ``code`` on ``master`` prints, as words."""
+    return subprocess.run(
+        [sys.executable, "-c", code, *args],
+        env=dict(os.environ, ROS_MASTER_URI=master.uri),
         capture_output=True,
         text=True,
         timeout=60,
         check=True,
     ).stdout.split()
-    assert out == [waited_out]
 
 
 SPIN_CHILD = """
@@ -81,15 +85,8 @@ print(rospy.core.is_shutdown(), waits[-1])
 
 
 def test_spin_returns_when_a_signal_shuts_the_node_down(ros_master):
-    out = subprocess.run(
-        [sys.executable, "-c", SPIN_CHILD],
-        env=dict(os.environ, ROS_MASTER_URI=ros_master.uri),
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=True,
-    ).stdout.split()
-    assert out == ["True", "True"]  # shut down, and the last wait woken, not run out
+    # Shut down, and the last wait woken, not run out.
+    assert _words(ros_master, SPIN_CHILD) == ["True", "True"]
 
 
 EXIT_CHILD = """
