@@ -1,7 +1,8 @@
 """``ow_lander.init_node``: a node's shutdown wakes rospy's registration thread once rospy's
 shutdown flag is up, instead of leaving it to its 0.5 s wait (every node stopped ~0.5 s later);
 ``spin`` returns when the node shuts down; ``exit_now`` ends the process without Python's
-teardown, its output and logs written.
+teardown, its output and logs written; the node's TCPROS server keeps many connections waiting
+while it accepts one.
 
 The tests watch the waits, not the clock: with bare ``rospy.init_node`` one of the registration
 thread's waits runs out its timeout after the flag is up; with ``init_node`` none does. ``spin``'s
@@ -113,3 +114,36 @@ def test_exit_now_writes_the_output_and_logs_and_skips_the_teardown(tmp_path):
     assert proc.returncode == 3
     assert proc.stdout == "written"  # flushed; the atexit handler never ran
     assert "last words" in log.read_text()
+
+
+BACKLOG_CHILD = """
+import socket, sys, threading
+import rospy
+from rospy.impl import tcpros_base
+from ow_lander.init_node import init_node
+
+stuck = threading.Event()
+# The server's accept loop handles one connection at a time: hold it at the first.
+tcpros_base.TCPROSServer._tcp_server_callback = lambda self, sock, addr: stuck.wait()
+if sys.argv[1] == "ours":
+    init_node("backlog_test", disable_signals=True)
+else:
+    rospy.init_node("backlog_test", disable_signals=True)
+    tcpros_base.init_tcpros_server().start_server()
+port = tcpros_base.init_tcpros_server().tcp_ros_server.port
+clients = []
+for _ in range(12):
+    try:  # in the backlog: at once; its SYN dropped: not before the accept loop moves on
+        clients.append(socket.create_connection(("127.0.0.1", port), timeout=2.0))
+    except OSError:
+        break
+print(len(clients))
+"""
+
+
+@pytest.mark.parametrize(("how", "connected"), [("ours", "12"), ("bare", "7")])
+def test_a_node_keeps_many_connections_waiting_while_it_accepts_one(ros_master, how, connected):
+    """Twelve subscribers connecting at once while the node accepts the first: with rospy's
+    backlog of 5 the kernel keeps six waiting and drops the rest's SYNs (each then retried
+    after 1 s), with init_node's all of them wait."""
+    assert _words(ros_master, BACKLOG_CHILD, how) == [connected]

@@ -20,13 +20,32 @@ from typing import Any, NoReturn
 import rospy
 import rospy.core
 import rospy.rostime
+from rospy.impl import tcpros_base
 from rospy.impl.registration import RegManager, get_registration_listeners
+
+#: Connections rospy's TCPROS server lets wait to be accepted (rospy: 5).
+TCPROS_BACKLOG = 128
 
 
 def init_node(name: str, **kwargs: Any) -> None:
-    """``rospy.init_node(name, **kwargs)``, then :func:`stop_promptly`."""
+    """``rospy.init_node(name, **kwargs)``, then :func:`stop_promptly` and
+    :func:`accept_many`."""
     rospy.init_node(name, **kwargs)
     stop_promptly()
+    accept_many()
+
+
+def accept_many() -> None:
+    """After ``rospy.init_node``: let the node's TCPROS server keep :data:`TCPROS_BACKLOG`
+    connections waiting, not 5. rospy's server accepts one connection at a time (it reads the
+    subscriber's header before it accepts the next), so when more than 5 subscribers connect at
+    once (a recorder subscribing to 30 topics of a node) the kernel drops the others' SYNs and
+    they retry 1 s later: the mission's stack took a second more to connect than it needed.
+    Linux takes a new backlog from ``listen`` on a socket already listening."""
+    server = tcpros_base.init_tcpros_server()  # the node's own, made by init_node
+    server.start_server()
+    if server.tcp_ros_server is not None:
+        server.tcp_ros_server.server_sock.listen(TCPROS_BACKLOG)
 
 
 def stop_promptly() -> None:
