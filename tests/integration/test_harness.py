@@ -4,12 +4,19 @@ import os
 import signal
 import socket
 import subprocess
+from pathlib import Path
 
 import pytest
 import rospy
 from std_srvs.srv import Empty
 
-from ow_mission.stack import NodeProcess, RosMaster, ignores_signal, node_command
+from ow_mission.stack import (
+    NODE_PYTHON_OPTIMIZE,
+    NodeProcess,
+    RosMaster,
+    ignores_signal,
+    node_command,
+)
 from ow_mission.testing import HarnessError, RosStack
 
 
@@ -46,6 +53,21 @@ def test_a_node_runs_as_the_program_rosrun_finds_for_it(package, executable):
         check=True,
     ).stdout.split()
     assert node_command(package, executable) == (found[0],)
+
+
+def test_the_stacks_python_nodes_run_without_docstrings(ros_master):
+    """PYTHONOPTIMIZE=2 (python -OO) in the environment of every node a stack starts: the
+    node's Python reads it at start-up, so its modules load without their docstrings."""
+    stack = RosStack(ros_master)
+    node = stack.start_node(
+        "ow_power", "power", name="harness_power", wait_for_topics=["/power"], timeout_s=60.0
+    )
+    try:
+        environ = Path(f"/proc/{node.proc.pid}/environ").read_bytes().split(b"\0")
+        assert f"PYTHONOPTIMIZE={NODE_PYTHON_OPTIMIZE}".encode() in environ
+        assert NODE_PYTHON_OPTIMIZE == "2"
+    finally:
+        stack.shutdown()
 
 
 def test_a_program_catkin_did_not_make_is_left_to_rosrun():

@@ -50,7 +50,8 @@ def start_figures(run_dir: Path, renders: bool) -> FiguresProcess:
         The process (the caller need not wait for it).
     """
     run_dir = Path(run_dir)
-    command = [sys.executable, "-m", "ow_mission.figures", str(run_dir)]
+    # -OO: no docstrings in memory, as the stack's nodes (ow_mission.stack.NODE_PYTHON_OPTIMIZE).
+    command = [sys.executable, "-OO", "-m", "ow_mission.figures", str(run_dir)]
     if not renders:
         command.append("--no-renders")
     with (run_dir / FIGURES_LOG).open("wb") as log:

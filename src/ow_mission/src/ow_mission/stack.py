@@ -37,6 +37,13 @@ def free_port() -> int:
         return int(sock.getsockname()[1])
 
 
+#: ``PYTHONOPTIMIZE`` of the nodes a stack starts: 2 is ``python -OO``, without docstrings
+#: (and ``assert`` statements: the nodes' code uses them only to narrow types). A node's
+#: docstrings are never read while it runs, and they took ~20 MB of the mission's stack
+#: (docs/performance.md, tenth round).
+NODE_PYTHON_OPTIMIZE = "2"
+
+
 @functools.cache
 def node_command(package: str, executable: str) -> tuple[str, ...]:
     """The command that runs ``executable`` of ``package``: the program catkin made for it in
@@ -367,7 +374,7 @@ class RosStack:
         log = log_path.open("wb")
         proc = subprocess.Popen(
             [*node_command(package, executable), f"__name:={node_name}", *args],
-            env=self.master.env,
+            env={**self.master.env, "PYTHONOPTIMIZE": NODE_PYTHON_OPTIMIZE},
             stdout=log,
             stderr=subprocess.STDOUT,
             stdin=subprocess.DEVNULL,
