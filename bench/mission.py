@@ -71,7 +71,7 @@ def node_cpu(mission_pid: int, seen: dict[tuple[int, int], tuple[str, float, flo
             names = ["mission"]
         elif any(a.endswith("rosmaster") for a in args[:2]):
             names = ["rosmaster"]
-        elif "ow_mission.figures" in args[:5]:
+        elif "ow_mission.figures" in args:
             names = ["figures"]  # the process drawing the figures after the mission, its pool
         elif not names and int(stat[1]) == mission_pid:
             names = ["mission_workers"]
