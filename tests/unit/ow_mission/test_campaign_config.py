@@ -61,6 +61,7 @@ def test_the_shipped_campaign_file_is_valid():
         ({"randomize": {"seed": [1, 5]}}, "campaign/randomize/seed: set by the campaign"),
         ({"mission": {"trench_depth": 0.3}}, "campaign/mission: mission/trench_depth = 0.3 m"),
         ({"mission": {"output_dir": "x"}}, "campaign/mission/output_dir: set by the campaign"),
+        ({"mission": {"figures": "after_exit"}}, "campaign/mission/figures: set by the campaign"),
         ({"base": "nowhere.yaml"}, "cannot read base mission .*nowhere.yaml"),
         ({"engine": "ray", "address": "ray://head"}, "campaign/address = 'ray://head' is not"),
         ({"workers": -1}, r"campaign/workers = -1 is outside"),
@@ -103,6 +104,8 @@ def test_seeds_come_from_the_campaign_seeds_children(tmp_path):
     assert mission["x"] == expected_x
     assert mission["seed"] == c.mission_seed(2)
     assert mission["output_dir"] == str(tmp_path / "campaign" / "missions" / "002")
+    # Its run is complete when it exits (the shipped base mission says after_exit).
+    assert mission["figures"] == "inline"
     assert MissionConfig.from_dict(mission).x == expected_x
     assert config(tmp_path, seed=2027, missions=3).mission_seed(2) != c.mission_seed(2)
 

@@ -40,8 +40,10 @@ RANGE_KEYS = (
 )
 #: Mission keys that may be drawn from a set of choices.
 CHOICE_KEYS = ("dig", "parallel", "terrain", "terrain_forces", "interface")
-#: Mission keys the campaign sets itself for each mission.
-DERIVED_KEYS = ("seed", "name", "output_dir")
+#: Mission keys the campaign sets itself for each mission. ``figures`` is always "inline": a
+#: mission's run is complete when its process exits, so a worker (a Ray task) that moves on, or
+#: a node taken down after it, leaves no figures half drawn.
+DERIVED_KEYS = ("seed", "name", "output_dir", "figures")
 #: Decimal places kept of a drawn number (mission files stay readable; 1 um).
 DIGITS = 6
 #: Campaign engines.
@@ -251,6 +253,7 @@ def sample_mission(config: CampaignConfig, k: int) -> dict[str, Any]:
         "seed": config.mission_seed(k),
         "name": f"{config.name} #{mission_label(k, config.missions)}",
         "output_dir": str(config.mission_dir(k)),
+        "figures": "inline",
     }
     try:
         MissionConfig.from_dict(mission)
