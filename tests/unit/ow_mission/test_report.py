@@ -444,6 +444,36 @@ def test_the_numbers_written_before_the_figures_are_the_reports(tmp_path):
     assert "--wait" not in (tmp_path / "report.md").read_text()
 
 
+def test_the_numbers_read_the_joint_states_only_when_they_need_them(tmp_path, monkeypatch):
+    """The numbers read the bags without /joint_states (half the messages) when /power and the
+    detector were recorded; without a recorded detector they read them too, to replay it, and
+    the numbers are those of the whole report."""
+    _write_bags(tmp_path / "bags", detector=False)
+    read = report_module.read_messages
+    asked: list[set] = []
+
+    def spy(bags, topics):
+        asked.append(set(topics))
+        return read(bags, topics)
+
+    monkeypatch.setattr(report_module, "read_messages", spy)
+    first = write_run_report(tmp_path, _document(), renders=False, draw=False)
+    assert "/joint_states" not in asked[0] and asked[1:] == [{"/joint_states"}]
+    document = json.loads((tmp_path / "report.json").read_text())
+    done = write_run_report(tmp_path, document, renders=False)
+    assert "/joint_states" in asked[2]  # the whole report reads everything at once
+    assert _numbers(done) == _numbers(first)
+    assert done["figure_notes"]["guarded_move"] == first["figure_notes"]["guarded_move"]
+    with_detector = tmp_path / "with_detector"
+    _write_bags(with_detector / "bags")
+    messages = report_module.read_report_messages(
+        sorted((with_detector / "bags").glob("*.bag")), joint_states=False
+    )
+    assert "/joint_states" not in messages and messages["/power"]
+    assert not report_module._needs_joint_states(messages, _document())
+    assert report_module._needs_joint_states({"/power": messages["/power"]}, _document())
+
+
 def test_the_figures_process_draws_them_and_a_waiter_gets_them(tmp_path):
     _write_bags(tmp_path / "bags")
     write_run_report(tmp_path, _document(), renders=False, draw=False)

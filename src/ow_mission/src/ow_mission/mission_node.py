@@ -38,7 +38,7 @@ from ow_mission.mission import (
     write_report,
 )
 from ow_mission.mission_config import USAGE, WAIT_FIGURES, MissionConfig, config_from_argv
-from ow_mission.report import preload, read_report_messages
+from ow_mission.report import preload, report_reader
 from ow_mission.stack import (
     HarnessError,
     NodeProcess,
@@ -132,7 +132,7 @@ class MissionRunner:
                     # machine lost 0.35 s of /power): stop once the recorder has all of them.
                     self.report.recording_note = wait_recorded(state, self._drain, DRAIN_TIMEOUT_S)
                     # The closed split files are read while the stack stops (docs/mission.md).
-                    prefetch = BagPrefetch(self.run_dir / "bags", read_report_messages)
+                    prefetch = BagPrefetch(self.run_dir / "bags", report_reader(self.config))
                     stack.shutdown(last=("record",))  # it closes its bag on SIGINT
         except (HarnessError, ConfigError) as exc:
             self.report.error = str(exc)

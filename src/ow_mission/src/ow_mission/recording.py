@@ -87,7 +87,8 @@ class Recording:
         return self.terrains[i][1]
 
 
-def _stamp_s(msg: Any) -> float:
+def stamp_s(msg: Any) -> float:
+    """s, the header stamp of a message read with rosbags."""
     return float(msg.header.stamp.sec) + 1e-9 * float(msg.header.stamp.nanosec)
 
 
@@ -106,7 +107,9 @@ def read_recording(bags: Sequence[Path]) -> Recording:
 
 
 def recording_from_messages(
-    messages: Mapping[str, Sequence[tuple[int, Any]]], bags: Sequence[Path] = ()
+    messages: Mapping[str, Sequence[tuple[int, Any]]],
+    bags: Sequence[Path] = (),
+    joints: bool = True,
 ) -> Recording:
     """The :class:`Recording` of messages read already (e.g. with the report's other topics).
 
@@ -117,20 +120,22 @@ def recording_from_messages(
         messages: topic -> (bag time ns, message) in time order, as
             :func:`ow_power.bagread.read_messages` returns for (at least) :data:`TOPICS`.
         bags: the files they were read from, in order.
+        joints: False accepts messages without ``/joint_states`` (a recording of the terrains,
+            the detector and the contacts only, its joint arrays empty).
 
     Raises:
-        ReplayError: there is no ``/joint_states``.
+        ReplayError: there is no ``/joint_states`` (and ``joints``).
     """
     joint_states = messages.get(JOINT_STATES_TOPIC, [])
-    if not joint_states:
+    if not joint_states and joints:
         msg_text = f"no {JOINT_STATES_TOPIC} in {[str(b) for b in bags]}"
         raise ReplayError(msg_text)
-    names = list(joint_states[0][1].name)
+    names = list(joint_states[0][1].name) if joint_states else []
     stamps = []
     rows = []
     for _, msg in joint_states:
         position = dict(zip(msg.name, msg.position, strict=False))
-        stamps.append(_stamp_s(msg))
+        stamps.append(stamp_s(msg))
         rows.append([position.get(n, np.nan) for n in names])
     recording = Recording(list(bags), np.zeros(0), [], np.zeros((0, 0)))
     for bag_ns, msg in messages.get(TERRAIN_TOPIC, []):
@@ -140,7 +145,7 @@ def recording_from_messages(
     for _, msg in messages.get(DETECTOR_TOPIC, []):
         recording.detector.append(
             DetectorSample(
-                _stamp_s(msg),
+                stamp_s(msg),
                 str(msg.detector),
                 float(msg.signal),
                 float(msg.moving_average),
@@ -151,7 +156,7 @@ def recording_from_messages(
     for _, msg in messages.get(GUARDED_RESULT_TOPIC, []):
         if msg.success:
             p = msg.position
-            recording.contacts.append((_stamp_s(msg), np.array([p.x, p.y, p.z])))
+            recording.contacts.append((stamp_s(msg), np.array([p.x, p.y, p.z])))
     order = np.argsort(np.asarray(stamps), kind="stable")
     recording.joint_t = np.asarray(stamps)[order]
     recording.joint_names = names

@@ -41,6 +41,7 @@ from ow_power.bagread import TopicMessages, read_messages
 from ow_power.errors import BagReadError
 
 if TYPE_CHECKING:
+    from ow_mission.mission_config import MissionConfig
     from ow_power.analysis import Analysis
 
 
@@ -108,10 +109,12 @@ def _attempt(figures: Figures, role: str, make: Callable[[], str | None]) -> Non
         figures.notes[role] = note
 
 
-def read_report_messages(bags: Sequence[Path]) -> TopicMessages:
+def read_report_messages(bags: Sequence[Path], joint_states: bool = True) -> TopicMessages:
     """Every topic the report uses (:data:`ow_power.analysis.TOPICS`,
     :data:`ow_mission.recording.TOPICS`, :data:`ow_mission.fault_report.TOPICS`), read from
-    ``bags`` in one pass.
+    ``bags`` in one pass; with ``joint_states`` False, all but ``/joint_states`` (half the
+    messages): what the report's numbers need when ``/power`` and the detector were recorded
+    (:func:`write_run_report` with ``draw=False`` reads them when not).
 
     Raises:
         BagReadError: a bag cannot be read; the message names it.
@@ -119,7 +122,38 @@ def read_report_messages(bags: Sequence[Path]) -> TopicMessages:
     from ow_mission import fault_report, recording
     from ow_power import analysis
 
-    return read_messages(bags, {*analysis.TOPICS, *recording.TOPICS, *fault_report.TOPICS})
+    topics = {*analysis.TOPICS, *recording.TOPICS, *fault_report.TOPICS}
+    if not joint_states:
+        topics.discard(recording.JOINT_STATES_TOPIC)
+    return read_messages(bags, topics)
+
+
+def report_reader(config: MissionConfig) -> Callable[[Sequence[Path]], TopicMessages]:
+    """What a mission's :class:`~ow_mission.bag_prefetch.BagPrefetch` reads of its bags for its
+    report: with ``figures: after_exit`` the numbers' topics only, without ``/joint_states``
+    (half the messages); with ``inline`` everything."""
+    if config.figures == "after_exit":
+        return functools.partial(read_report_messages, joint_states=False)
+    return read_report_messages
+
+
+def _needs_joint_states(messages: TopicMessages, document: Mapping[str, Any]) -> bool:
+    """Whether the report's numbers need ``/joint_states`` that ``messages`` lacks: without
+    ``/power`` the power comes from the joint states, and without a recorded detector sample in
+    the guarded move's window the detector is replayed on them."""
+    from ow_mission.recording import DETECTOR_TOPIC, JOINT_STATES_TOPIC, stamp_s
+    from ow_power.analysis import POWER_TOPIC
+
+    if messages.get(JOINT_STATES_TOPIC):
+        return False
+    if not messages.get(POWER_TOPIC):
+        return True
+    step = next((s for s in document["steps"] if s["step"] == "guarded_move"), None)
+    if step is None:
+        return False
+    start, end = float(step["sim_start_s"]), float(step["sim_end_s"])
+    stamps = (stamp_s(m) for _, m in messages.get(DETECTOR_TOPIC, ()))
+    return not any(start <= t <= end for t in stamps)
 
 
 def energies_from_bags(
@@ -349,10 +383,15 @@ def faults_section(
 
 
 def _report_messages(
-    bags: Sequence[Path], figures: Figures, prefetch: BagPrefetch | None = None
+    bags: Sequence[Path],
+    document: Mapping[str, Any],
+    figures: Figures,
+    prefetch: BagPrefetch | None = None,
 ) -> TopicMessages | None:
     """:func:`read_report_messages` of ``bags`` (none without bags; with ``prefetch``, of the
-    files it did not read), or None with a note when they cannot be read."""
+    files it did not read), or None with a note when they cannot be read. For the numbers only
+    (``figures.draw`` False), ``/joint_states`` only when they need it
+    (:func:`_needs_joint_states`)."""
     if not bags:
         figures.notes["bags"] = "No bag was recorded: no figure could be made."
         return {}
@@ -361,7 +400,14 @@ def _report_messages(
     def read() -> str | None:
         nonlocal messages
         try:
-            messages = read_report_messages(bags) if prefetch is None else prefetch.messages(bags)
+            if prefetch is not None:
+                messages = prefetch.messages(bags)
+            else:
+                messages = read_report_messages(bags, joint_states=figures.draw)
+            if not figures.draw and _needs_joint_states(messages, document):
+                from ow_mission.recording import JOINT_STATES_TOPIC
+
+                messages.update(read_messages(bags, {JOINT_STATES_TOPIC}))
         except BagReadError as exc:
             return f"the bags could not be read, so no figure was made from them: {exc}"
         return None
@@ -391,7 +437,7 @@ def _figures_from_bags(
 
     def read_recording() -> str | None:
         nonlocal recording
-        recording = recording_from_messages(messages, bags)
+        recording = recording_from_messages(messages, bags, joints=figures.draw)
         return None
 
     def analyze() -> str | None:
@@ -507,7 +553,7 @@ def write_run_report(
     collecting = gc.isenabled()
     gc.disable()
     try:
-        messages = _report_messages(bags, figures, prefetch)
+        messages = _report_messages(bags, document, figures, prefetch)
         if messages is not None and bags:
             _figures_from_bags(run_dir, document, bags, messages, figures, renders)
         if messages is not None:
