@@ -37,7 +37,7 @@ from ow_lander.operations import DOCK_CENTRE, POUR_TILT
 from ow_mission.figures import wait_for_figures
 from ow_mission.mission import MISSION_TELEMETRY_HZ
 from ow_mission.mission_config import DEFAULT_MISSION_FILE
-from ow_mission.report import image_links
+from ow_mission.report_files import image_links
 from ow_mission.run_compare import differences, report_numbers
 from ow_power.analysis import analyze, window_figures
 from ow_sim_bullet.terrains import parse_terrain_spec

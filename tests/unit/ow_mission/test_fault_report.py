@@ -17,7 +17,8 @@ from ow_mission.fault_report import (
     markdown_lines,
     read_fault_recording,
 )
-from ow_mission.report import image_links, write_run_report
+from ow_mission.report import write_run_report
+from ow_mission.report_files import image_links
 from ow_power.bagwriter import SplitBagWriter
 from ow_power.synthetic import BagMessages, ow_typestore
 from owl_msgs.msg import ArmFaultsStatus, SystemFaultsStatus

@@ -22,7 +22,8 @@ from ow_mission.plots import DEPTH_TOLERANCE_M, TrenchGeometry, detector_trace, 
 from ow_mission.recording import read_recording
 from ow_mission.render import Camera, camera_axes, fit_camera
 from ow_mission.replay import frame_times, make_replay, step_at
-from ow_mission.report import image_links, write_run_report
+from ow_mission.report import write_run_report
+from ow_mission.report_files import image_links
 from ow_power.bagwriter import SplitBagWriter
 from ow_power.synthetic import BagMessages, Segment, write_run
 

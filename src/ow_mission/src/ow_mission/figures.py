@@ -165,7 +165,8 @@ def make_figures(run_dir: Path, renders: bool) -> int:
     Returns:
         The process's exit code: 0 when the report was rewritten with its figures.
     """
-    from ow_mission.report import Figures, markdown, write_report_files, write_run_report
+    from ow_mission.report import write_run_report
+    from ow_mission.report_files import Figures, markdown, write_report_files
 
     run_dir = Path(run_dir)
     try:
