@@ -29,9 +29,12 @@ from owl_msgs.msg import ArmEndEffectorForceTorque
 
 #: physics steps whose outputs are written together when running faster than real time (a
 #: socket write wakes the subscriber and costs more than the messages: bench/sim_speed.py held at
-#: 84-85x with 4, 93-96x with 10, 102-104x with 25, 2026-11-25). Paced, held by a lockstep
-#: client (every 0.1 s of sim time by default), stepped or paused, they are written at once.
-FLUSH_STEPS = 25
+#: 84-85x with 4, 93-96x with 10, 102-104x with 25, 2026-11-25). Not more: the nodes' clocks then
+#: jump by as much at once, and a rospy timer of 5 Hz (the action servers' status) fired in bursts
+#: and resets with 25 (test_actions' status rate failed once in six suites). Paced, held by a
+#: lockstep client (every 0.1 s of sim time by default), stepped or paused, they are written at
+#: once.
+FLUSH_STEPS = 10
 
 #: (topic, message class) of every output written with the wire publishers, in the order their
 #: queued messages are written: /clock first.
