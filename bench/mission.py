@@ -22,6 +22,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import yaml
@@ -106,21 +107,24 @@ def main() -> int:
             ) as proc,
         ):
             peak_pss_mb = peak_pss_at_s = 0.0
-            while proc.poll() is None:
-                pss_mb = node_cpu(proc.pid, seen)
-                if pss_mb > peak_pss_mb:
-                    peak_pss_mb, peak_pss_at_s = pss_mb, time.monotonic() - started
-                time.sleep(CPU_POLL_S)
-            wall = time.monotonic() - started
+
+            def sample_while(running: Callable[[], bool]) -> float:
+                """Read the processes every CPU_POLL_S while ``running()``; s from rosrun."""
+                nonlocal peak_pss_mb, peak_pss_at_s
+                while running():
+                    pss_mb = node_cpu(proc.pid, seen)
+                    if pss_mb > peak_pss_mb:
+                        peak_pss_mb, peak_pss_at_s = pss_mb, time.monotonic() - started
+                    time.sleep(CPU_POLL_S)
+                return time.monotonic() - started
+
+            wall = sample_while(lambda: proc.poll() is None)
             reports = sorted(Path(tmp).glob("*/report.json"))
             # The figures drawn after the mission exits (``figures: after_exit``): their
             # process's CPU and memory count, and when they are done.
-            while reports and figures_status(reports[-1].parent) == "drawing":
-                pss_mb = node_cpu(proc.pid, seen)
-                if pss_mb > peak_pss_mb:
-                    peak_pss_mb, peak_pss_at_s = pss_mb, time.monotonic() - started
-                time.sleep(CPU_POLL_S)
-            done = time.monotonic() - started
+            done = sample_while(
+                lambda: bool(reports) and figures_status(reports[-1].parent) == "drawing"
+            )
             out.seek(0)
             output = out.read()
         if not reports:

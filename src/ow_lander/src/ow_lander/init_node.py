@@ -19,7 +19,6 @@ from typing import Any, NoReturn
 
 import rospy
 import rospy.core
-import rospy.rostime
 from rospy.impl import tcpros_base
 from rospy.impl.registration import RegManager, get_registration_listeners
 
