@@ -147,3 +147,28 @@ def test_a_node_keeps_many_connections_waiting_while_it_accepts_one(ros_master, 
     backlog of 5 the kernel keeps six waiting and drops the rest's SYNs (each then retried
     after 1 s), with init_node's all of them wait."""
     assert _words(ros_master, BACKLOG_CHILD, how) == [connected]
+
+
+REFUSING_CHILD = """
+import rospy
+from ow_lander.init_node import exit_now, init_node
+
+init_node("refusing_node")
+rospy.Publisher("/refusing_topic", rospy.AnyMsg, queue_size=1)  # registered with the master
+exit_now(1)  # as a main that refuses its parameters returns, rospy still running
+"""
+
+
+def test_a_node_that_exits_without_shutting_down_leaves_the_master(ros_master):
+    """exit_now shuts rospy down first: the node unregisters, so the master never calls an
+    address that another node's server may take next."""
+    proc = subprocess.run(
+        [sys.executable, "-c", REFUSING_CHILD],
+        env=dict(os.environ, ROS_MASTER_URI=ros_master.uri),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert proc.returncode == 1, proc.stderr
+    assert "/refusing_topic" not in {name for name, _ in ros_master.call("getSystemState")[0]}

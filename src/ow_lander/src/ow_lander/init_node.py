@@ -87,9 +87,17 @@ def exit_now(code: int | None = 0) -> NoReturn:
     so only after it has returned: the recorder's bag is closed by then, and no node leaves
     anything else to do at exit. A ``main`` that raises exits as Python does.
 
+    A ``main`` that returns without rospy having shut down (a node refusing its parameters)
+    is shut down here first, as rospy's own exit handler would: the node unregisters from the
+    master. Left registered, the master went on calling its address, and once another node's
+    TCPROS server took that port, the master's XML-RPC request stalled that server's accept
+    loop for good (a test's service call hung).
+
     Args:
         code: the exit status (None: 0, as ``sys.exit``).
     """
+    if rospy.core.is_initialized() and not rospy.core.is_shutdown():
+        rospy.core.signal_shutdown("exit")
     logging.shutdown()
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(OSError, ValueError):  # closed or gone: nothing to write

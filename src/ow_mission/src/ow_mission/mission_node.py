@@ -125,8 +125,7 @@ class MissionRunner:
                         end, state = 0.0, -1.0
                     state = state if state >= 0.0 else self._last_joint_stamp()
                     self.report.sim_time_s = max(end, state, self._clock)
-                    # The report's imports while the stack stops (mostly waiting for exits):
-                    # during the steps they held ~50 MB of the stack's peak for a second's work.
+                    # The report's imports while the stack stops (not ~50 MB during the steps).
                     threading.Thread(target=preload, name="report_preload", daemon=True).start()
                     # The nodes may still be working through the last states (a loaded
                     # machine lost 0.35 s of /power): stop once the recorder has all of them.
@@ -134,6 +133,7 @@ class MissionRunner:
                     # The closed split files are read while the stack stops (docs/mission.md).
                     prefetch = BagPrefetch(self.run_dir / "bags", report_reader(self.config))
                     stack.shutdown(last=("record",))  # it closes its bag on SIGINT
+                    rospy.signal_shutdown("mission done")  # leaves the master while it runs
         except (HarnessError, ConfigError) as exc:
             self.report.error = str(exc)
         self.report.wall_time_s = time.monotonic() - wall0
