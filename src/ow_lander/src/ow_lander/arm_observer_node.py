@@ -22,6 +22,7 @@ from ow_lander.description import (
 from ow_lander.errors import PlanningError
 from ow_lander.execution import ExecutionMonitor
 from ow_lander.guard_streams import GuardStreams
+from ow_lander.lockstep_join_node import LockstepJoin
 from ow_lander.lockstep_node import LockstepClient, LockstepError
 from ow_lander.sim_time_node import wait_for_clock
 from ow_lander.tip_sampler_node import TipSampler
@@ -59,6 +60,7 @@ class ArmObserver:
         #: the simulation's lockstep, once joined: with no execution running, every joint state
         #: is acknowledged as it arrives (an execution acknowledges its decisions)
         self._lockstep: LockstepClient | None = None
+        self._joining: LockstepJoin | None = None  # None: not joining a lockstep
         self._wrench = (np.zeros(3), np.zeros(3))
         self.signal_pub = rospy.Publisher(
             "/arm/ground_detector", GroundDetectorSignal, queue_size=100
@@ -83,21 +85,17 @@ class ArmObserver:
             tcp_nodelay=True,
         )
 
-    def join_lockstep(self, hold: bool) -> None:
-        """Register with the simulation's lockstep once it offers one (it may start later, or
-        never: then commands go out on the controllers' topics); ``hold``: holding it."""
-        client = LockstepClient(rospy.get_name())
-        try:
-            client.register(hold=hold)
-        except LockstepError as error:
-            rospy.logwarn(f"arm services: no lockstep: {error}")
-            return
+    def start_joining_lockstep(self, hold: bool) -> None:
+        """Register with the simulation's lockstep, on a thread of its own, once it offers one
+        (it may start later, or never: then commands go out on the controllers' topics);
+        ``hold``: holding it. A request meanwhile waits for it (:meth:`LockstepJoin.wait`)."""
+        self._joining = LockstepJoin(rospy.get_name(), hold, self._joined, "arm services")
+
+    def _joined(self, client: LockstepClient) -> None:
         with self._state_changed:  # and the joint states since registration
             self._lockstep = client
             if self._monitor is None:
                 client.ack(self._joint_stamp, force=True)
-        rospy.on_shutdown(client.close)
-        rospy.loginfo(f"arm services: in the simulation's lockstep (latency {client.latency} s)")
 
     def _on_joint_states(self, msg: JointState) -> None:
         values = conv.joint_positions(list(msg.name), msg.position)
@@ -186,6 +184,8 @@ class ArmObserver:
         of wall time at most, each) until it stands held with its outputs (its terrain too)
         written and the newest joint state it published has arrived: a plan started from an
         older state or terrain (a subscriber lagging under load) differs from run to run."""
+        if self._joining is not None:
+            self._joining.wait(self.joint_state_timeout_s)
         lockstep = self._lockstep
         if lockstep is None or not lockstep.holding:
             return

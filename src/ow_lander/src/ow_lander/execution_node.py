@@ -68,9 +68,7 @@ class ArmExecutor(ArmObserver):
         self._braking_sent = threading.Event()  # a requested stop's braking went out
         self._braking_confirmed = False  # and the simulation confirmed it has it
         if config.lockstep:
-            threading.Thread(
-                target=self.join_lockstep, args=(config.lockstep_hold,), daemon=True
-            ).start()
+            self.start_joining_lockstep(config.lockstep_hold)
 
     def executing(self) -> bool:
         """Whether an execution runs now (a stop would stop it)."""

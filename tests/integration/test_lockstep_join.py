@@ -1,0 +1,55 @@
+"""The arm services joining the simulation's lockstep while a mission's first request comes.
+
+They join on a thread of their own, after they offer their services. A request that came first
+was planned and executed outside the lockstep: nothing released the hold the simulation starts
+with for them, and the simulation and the arm services waited for each other. A request now
+waits for the join.
+"""
+
+from __future__ import annotations
+
+import time
+
+import rospy
+from std_srvs.srv import Trigger
+
+from ow_lander.lockstep_node import simulation_status
+from ow_mission.testing import FLAT
+from ow_msgs.srv import Unstow
+
+
+def test_a_step_called_before_the_arm_services_joined_the_lockstep_waits_for_them(ros_stack):
+    """The arm services join the lockstep on a thread of their own, after they offer their
+    services. A request that came first was planned and executed outside the lockstep: nothing
+    released the hold the simulation starts with for them, and the simulation and the arm
+    services waited for each other (a mission whose stack was ready sooner called its first
+    step 0.3 s before the join). A request now waits for the join."""
+    ros_stack.start_node(  # first: they join once the simulation offers its lockstep
+        "ow_lander",
+        "arm_services",
+        params={
+            "plan_and_execute": True,
+            "execution": {"lockstep": True, "lockstep_hold": True},
+        },
+        wait_for_services=["/arm/unstow"],
+    )
+    ros_stack.start_node(
+        "ow_sim_bullet",
+        "sim",
+        params={
+            "real_time_factor": 0.0,
+            "terrain": FLAT,
+            "start_paused": True,
+            "lockstep_clients": ["/arm_services"],
+        },
+        wait_for_services=["/sim/resume"],
+    )
+    deadline = time.monotonic() + 30.0
+    while ros_stack.master.unconnected() and time.monotonic() < deadline:
+        time.sleep(0.01)  # the arm services get the state it starts from (as a mission waits)
+    assert rospy.ServiceProxy("/sim/resume", Trigger)().success
+    response = ros_stack.service("/arm/unstow", Unstow)()  # at once, as a mission calls it
+    assert response.success, response.message
+    status = simulation_status()
+    assert status.clients == ["/arm_services"]
+    assert status.sim_time > 10.0  # the unstow ran in the simulation
