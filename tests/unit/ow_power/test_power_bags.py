@@ -10,7 +10,7 @@ import pytest
 from rosbags.highlevel import AnyReader
 
 from ow_power.analysis import analyze, format_table, pair_operations, plot_power, write_summary
-from ow_power.bagwriter import SplitBagWriter, record_time_ns, starts_with_header
+from ow_power.bagwriter import SplitBagWriter, record_time_ns, stamp_offset, starts_with_header
 from ow_power.config import PowerConfig
 from ow_power.errors import AnalysisError, RecorderError
 from ow_power.synthetic import OW_MSGS_DIR, BagMessages, Segment, ow_typestore, write_run
@@ -374,6 +374,38 @@ def test_a_message_is_stamped_by_its_header_only_when_it_starts_with_one(msgtype
     assert starts_with_header(msgdef) == has_header
     genpy_style = "# a comment\nuint8 ADD=0\nHeader header  # stamp\nfloat64 x\n"
     assert starts_with_header(genpy_style)
+
+
+def _wire(msg) -> bytes:
+    from io import BytesIO
+
+    buffer = BytesIO()
+    msg.serialize(buffer)
+    return buffer.getvalue()
+
+
+def test_a_list_of_stamped_messages_is_recorded_at_its_first_ones_stamp():
+    """/tf and marker arrays have no header of their own: they go in the bag where their first
+    transform or marker holds, not when they arrived (the recorder gets the simulation's
+    outputs in batches, up to 0.5 s of sim time late, and a viewer replays /tf by bag time)."""
+    import genpy
+    from geometry_msgs.msg import TransformStamped
+    from std_msgs.msg import Header, String
+    from tf2_msgs.msg import TFMessage
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    def transform(secs: int, nsecs: int) -> TransformStamped:
+        return TransformStamped(header=Header(stamp=genpy.Time(secs, nsecs)))
+
+    tf = TFMessage([transform(12, 5), transform(13, 0)])
+    assert stamp_offset(TFMessage._full_text) == 8
+    assert record_time_ns(TFMessage._full_text, _wire(tf), 1) == 12_000_000_005
+    assert record_time_ns(TFMessage._full_text, _wire(TFMessage([])), 1) == 1  # none: arrival
+    markers = MarkerArray([Marker(header=Header(stamp=genpy.Time(7, 0)))])
+    assert record_time_ns(MarkerArray._full_text, _wire(markers), 1) == 7_000_000_000
+    assert stamp_offset(Marker._full_text) == 4
+    assert stamp_offset(String._full_text) == 0
+    assert stamp_offset("float64[] values\n") == 0  # a list, but of numbers
 
 
 def test_a_header_stamp_of_zero_takes_the_arrival_time():

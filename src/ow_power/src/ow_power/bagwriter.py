@@ -44,7 +44,41 @@ ACTIVE_SUFFIX = ".active"
 #: The first field of a message definition, after comments and constants.
 _FIRST_FIELD = re.compile(r"^\s*([\w/]+)(\[\d*\])?\s+(\w+)\s*$")
 _STAMP = struct.Struct("<II")
+#: Field types that are not messages.
+_BUILTIN_TYPES = frozenset(
+    (
+        *(f"{kind}{bits}" for kind in ("int", "uint") for bits in (8, 16, 32, 64)),
+        "float32",
+        "float64",
+        "string",
+        "bool",
+        "time",
+        "duration",
+        "byte",
+        "char",
+    )
+)
 _U32 = struct.Struct("<I")
+
+
+def _first_field(definition: str) -> tuple[str, str | None] | None:
+    """(type, array suffix or None) of the first field of one message's definition (its own
+    part of a full definition), or None when it has none."""
+    for line in definition.splitlines():
+        text = line.split("#", 1)[0].strip()
+        if not text:
+            continue
+        if text.startswith("=" * 10):  # the definitions of nested types begin
+            return None
+        field = _FIRST_FIELD.match(text)
+        if field is None:  # a constant (``uint8 ADD=0``)
+            continue
+        return field.group(1), field.group(2)
+    return None
+
+
+def _is_header(field: tuple[str, str | None] | None) -> bool:
+    return field is not None and field[0] in ("Header", "std_msgs/Header") and field[1] is None
 
 
 @functools.lru_cache(maxsize=256)
@@ -57,17 +91,30 @@ def starts_with_header(msgdef: str) -> bool:
     Args:
         msgdef: the full message definition, as in the connection header.
     """
-    for line in msgdef.splitlines():
-        text = line.split("#", 1)[0].strip()
-        if not text:
-            continue
-        if text.startswith("=" * 10):  # the definitions of nested types begin
-            return False
-        field = _FIRST_FIELD.match(text)
-        if field is None:  # a constant (``uint8 ADD=0``)
-            continue
-        return field.group(1) in ("Header", "std_msgs/Header") and field.group(2) is None
-    return False
+    return _is_header(_first_field(msgdef))
+
+
+@functools.lru_cache(maxsize=256)
+def stamp_offset(msgdef: str) -> int:
+    """Where a message's stamp is in its wire format: 4 (bytes, after ``header.seq``) when
+    its first field is a Header; 8 when it is a list of messages that each start with a Header
+    (``tf2_msgs/TFMessage``, ``visualization_msgs/MarkerArray``: the first one's stamp, after
+    the list's length and its ``seq``); 0 when it has no stamp there.
+
+    Args:
+        msgdef: the full message definition, as in the connection header.
+    """
+    first = _first_field(msgdef)
+    if _is_header(first):
+        return 4
+    if first is None or first[1] != "[]" or first[0] in _BUILTIN_TYPES:
+        return 0
+    name = first[0].rpartition("/")[2]
+    for section in msgdef.split("\nMSG: ")[1:]:
+        type_name, _, definition = section.partition("\n")
+        if type_name.strip().rpartition("/")[2] == name:
+            return 8 if _is_header(_first_field(definition)) else 0
+    return 0
 
 
 def header_stamp_ns(data: bytes) -> int:
@@ -86,11 +133,15 @@ def header_stamp_ns(data: bytes) -> int:
 
 
 def record_time_ns(msgdef: str, data: bytes, arrival_ns: int) -> int:
-    """ns, the bag time of a message: its ``header.stamp`` when its first field is a Header and
-    the stamp is set, else ``arrival_ns`` (the receipt time on the ROS clock).
+    """ns, the bag time of a message: its stamp (:func:`stamp_offset`: ``header.stamp``, or
+    the first transform's or marker's of a list of them) when it has one and it is set, else
+    ``arrival_ns`` (the receipt time on the ROS clock).
 
-    Header stamps keep the times of a batch the simulation sends at once (its physics steps)
-    instead of clumping them at the arrival time.
+    Stamps keep the times of a batch the simulation sends at once (its physics steps) instead
+    of clumping them at the arrival time, and put ``/tf`` in the bag where its transforms hold
+    (a viewer replaying the bag gets the robot's frames with its joint states): the recorder
+    receives the simulation's outputs up to 0.5 s of sim time after they hold, and its clock
+    ticks at 10 Hz in a mission.
 
     Args:
         msgdef: the full message definition, as in the connection header.
@@ -100,7 +151,14 @@ def record_time_ns(msgdef: str, data: bytes, arrival_ns: int) -> int:
     Raises:
         RecorderError: a message declared with a Header is too short to hold one.
     """
-    stamp_ns = header_stamp_ns(data) if starts_with_header(msgdef) else 0
+    offset = stamp_offset(msgdef)
+    if offset == 4:
+        stamp_ns = header_stamp_ns(data)
+    elif offset == 8 and len(data) >= 16 and _U32.unpack_from(data, 0)[0] > 0:
+        secs, nsecs = _STAMP.unpack_from(data, 8)
+        stamp_ns = secs * 1_000_000_000 + nsecs
+    else:
+        stamp_ns = 0
     return stamp_ns or arrival_ns
 
 
