@@ -33,6 +33,17 @@ def test_a_client_lets_the_simulation_run_one_latency_past_its_acknowledgement()
     assert steps_allowed(lockstep, 1.06) == pytest.approx(1.09)
 
 
+def test_the_nodes_awaited_are_those_of_the_clients_whose_acknowledgement_the_step_needs():
+    lockstep = Lockstep(LATENCY)
+    lockstep.register("arm", 0.0, hold=False, node="/arm_services")
+    lockstep.register("faults", 0.0, hold=False, node="/mission")
+    lockstep.ack("faults", 10.0)  # far ahead: not waited for
+    assert lockstep.awaited_nodes(0.03) == frozenset()  # within the latency: nobody
+    assert lockstep.awaited_nodes(0.06) == {"/arm_services"}
+    lockstep.register("expected", 0.0, hold=False)  # registered for it: its node unknown
+    assert lockstep.awaited_nodes(0.06) is None  # then everyone
+
+
 def test_the_slowest_client_sets_the_pace():
     lockstep = Lockstep(LATENCY)
     lockstep.register("fast", 0.0, hold=False)

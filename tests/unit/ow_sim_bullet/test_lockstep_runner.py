@@ -30,13 +30,15 @@ class _Recorder(SimOutputs):
         #: s (sim) of each standing written with its terrain, and how long one takes (wall s)
         self.stood: list[float] = []
         self.standing_s = 0.0
+        #: (sim time s, the nodes written to: None for everyone) of every flush
+        self.flushes: list[tuple[float, frozenset[str] | None]] = []
 
     def publish(self, force: bool = False) -> None:
         sample = self.sim.sample
         self.joint_stamp = sample.time
         self.states.append((sample.time, sample.position.copy()))
 
-    def after_step(self) -> None:
+    def after_step(self, lockstep: bool = False) -> None:
         self.publish()
 
     def publish_standing(self, terrain: bool = True) -> None:
@@ -44,8 +46,8 @@ class _Recorder(SimOutputs):
             time.sleep(self.standing_s)  # a terrain's serialisation, on a loaded machine
             self.stood.append(self.sim.time)
 
-    def flush(self) -> None:
-        pass
+    def flush(self, only=None) -> None:
+        self.flushes.append((self.sim.time, None if only is None else frozenset(only)))
 
     def publish_terrain_if_due(self) -> None:
         pass
@@ -111,6 +113,23 @@ def test_a_late_acknowledgement_holds_the_simulation_back_until_it_comes(runner)
             break
         time.sleep(0.01)
     assert runner.lockstep_status()[0] == pytest.approx(0.5 + LATENCY + 0.01)
+
+
+def test_waiting_for_an_acknowledgement_writes_to_the_clients_node_and_a_hold_to_everyone(runner):
+    """What a client decides on must reach it before the simulation can go on; the other
+    subscribers (recorder, monitors) get the same messages later, in bigger batches. Where the
+    simulation stands held, everything goes out to everyone."""
+    runner.lockstep_register("arm", enable=True, hold=False, node="/arm_services")
+    runner.resume()
+    deadline = time.monotonic() + 5.0
+    while runner.lockstep_status()[3] is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    waiting_at = runner.lockstep_status()[0]
+    assert (waiting_at, frozenset({"/arm_services"})) in runner.outputs.flushes
+    runner.lockstep_ack("arm", waiting_at, waiting_at, [])  # holds right where it waits
+    while runner.lockstep_status()[4] != ["arm"] and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert runner.outputs.flushes[-1] == (pytest.approx(waiting_at), None)
 
 
 def test_a_simulation_paused_at_a_hold_takes_no_step_when_its_client_leaves(runner):

@@ -134,13 +134,13 @@ class _NoOutputs(SimOutputs):
     def publish(self, force: bool = False) -> None:
         pass
 
-    def after_step(self) -> None:
+    def after_step(self, lockstep: bool = False) -> None:
         pass
 
     def publish_standing(self, terrain: bool = True) -> None:
         pass
 
-    def flush(self) -> None:
+    def flush(self, only=None) -> None:
         pass
 
     def publish_terrain_if_due(self) -> None:

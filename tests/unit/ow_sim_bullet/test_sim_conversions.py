@@ -290,6 +290,31 @@ def test_batch_publisher_builds_nothing_without_subscribers_or_while_shutting_do
     assert connection.data == [] and impl.message_data_sent == 0
 
 
+def frame(seq: int, time_s: float) -> bytes:
+    payload = wire.clock(seq, time_s)
+    return struct.pack("<I", len(payload)) + payload
+
+
+def test_a_flush_for_some_nodes_leaves_the_others_their_messages_for_the_next_flush():
+    arm, recorder, monitors = (FakeConnection() for _ in range(3))
+    arm.endpoint_id, recorder.endpoint_id, monitors.endpoint_id = "/arm", "/record", "/monitors"
+    publisher, impl, _ = batch([arm, recorder, monitors])
+    publisher.publish(wire.clock, 1.0)
+    publisher.flush(only={"/arm"})
+    assert arm.data == [frame(1, 1.0)] and recorder.data == monitors.data == []
+    publisher.publish(wire.clock, 2.0)
+    publisher.flush(only={"/arm", "/record"})
+    # The recorder gets what it missed first, in one write: the stream is the same for all.
+    assert arm.data == [frame(1, 1.0), frame(2, 2.0)]
+    assert recorder.data == [frame(1, 1.0) + frame(2, 2.0)] and monitors.data == []
+    impl.connections.remove(recorder)  # closed meanwhile: what it was owed is forgotten
+    publisher.flush()
+    assert monitors.data == [frame(1, 1.0) + frame(2, 2.0)]
+    assert arm.data == [frame(1, 1.0), frame(2, 2.0)]  # nothing new for it
+    assert publisher._behind == {}
+    assert impl.message_data_sent == len(frame(1, 1.0) + frame(2, 2.0))  # each message once
+
+
 def point(time_s: float, positions, velocities=()):
     return SimpleNamespace(
         time_from_start=genpy.Duration.from_sec(time_s),

@@ -18,7 +18,7 @@ from ow_msgs.msg import ToolState as ToolStateMsg
 from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.conversions import joint_frames
 from ow_sim_bullet.errors import CommandError, SimError
-from ow_sim_bullet.outputs import FLUSH_STEPS, WIRE_TOPICS, SimOutputs
+from ow_sim_bullet.outputs import FLUSH_STEPS, LOCKSTEP_FLUSH_STEPS, WIRE_TOPICS, SimOutputs
 from ow_sim_bullet.runner import SimRunner
 from ow_sim_bullet.sim_core import BulletSim
 from ow_sim_bullet.terrains import flat
@@ -37,7 +37,7 @@ class Recorder:
         self.seq += 1
         self.queued.append(serialize(self.seq, *args))
 
-    def flush(self) -> None:
+    def flush(self, only=None) -> None:
         if self.queued:
             self.log.append(self.topic)
         self.written += self.queued
@@ -67,10 +67,10 @@ class Setup:
             self.sim, config, self.recorders, self.terrain, frames, self.clock_times.append
         )
 
-    def steps(self, count: int) -> None:
+    def steps(self, count: int, lockstep: bool = False) -> None:
         for _ in range(count):
             self.sim.step()
-            self.outputs.after_step()
+            self.outputs.after_step(lockstep)
 
 
 @pytest.fixture()
@@ -117,6 +117,16 @@ def test_messages_are_written_every_few_steps_clock_first(setup):
     assert setup.log[0] == "/clock"
     assert setup.clock_times == [pytest.approx(FLUSH_STEPS * setup.sim.dt)]
     assert len(setup.recorders["/joint_states"].written) == FLUSH_STEPS
+
+
+def test_in_the_lockstep_everyone_gets_the_messages_every_lockstep_flush_steps(setup):
+    """The nodes a step waits for get theirs each time it waits (the runner's partial
+    flushes); the rest are written for everyone only this often."""
+    setup.steps(LOCKSTEP_FLUSH_STEPS - 1, lockstep=True)
+    assert not setup.log
+    setup.steps(1, lockstep=True)
+    assert setup.log[0] == "/clock"
+    assert len(setup.recorders["/joint_states"].written) == LOCKSTEP_FLUSH_STEPS
 
 
 def test_the_terrain_is_republished_after_it_changed(setup):

@@ -33,12 +33,15 @@ class ClientState:
         acked: s (sim), the newest joint state it has processed.
         hold_until: s (sim), the time it holds the simulation at, or None.
         last_ack_wall: s (monotonic wall clock) of its last acknowledgement or registration.
+        node: the node (ROS caller id) that registered it, whose subscriptions it decides on;
+            None: not known (registered for it, e.g. expected from the start).
     """
 
     order: int
     acked: float
     hold_until: float | None
     last_ack_wall: float
+    node: str | None = None
 
     def holds(self, now: float) -> bool:
         """Whether it holds the simulation at sim time ``now`` (s)."""
@@ -71,14 +74,17 @@ class Lockstep:
         self._orders = 0
         self._seq = 0
 
-    def register(self, name: str, now: float, hold: bool, wall: float = 0.0) -> None:
+    def register(
+        self, name: str, now: float, hold: bool, wall: float = 0.0, node: str | None = None
+    ) -> None:
         """Register ``name`` (again: afresh) at sim time ``now`` (s): it has seen everything up to
-        then; ``hold``: the simulation steps no further than ``now`` until it releases it."""
+        then; ``hold``: the simulation steps no further than ``now`` until it releases it;
+        ``node``: the node it runs in (see :meth:`awaited_nodes`)."""
         if not name:
             msg = "a lockstep client needs a name"
             raise ValueError(msg)
         self._orders += 1
-        self.clients[name] = ClientState(self._orders, now, now if hold else None, wall)
+        self.clients[name] = ClientState(self._orders, now, now if hold else None, wall, node)
 
     def unregister(self, name: str) -> bool:
         """Forget ``name`` (its commands not yet applied stay); False if it was not registered."""
@@ -133,6 +139,18 @@ class Lockstep:
             if waiting is None and now > client.acked + self.latency_s + EPSILON:
                 waiting = (name, "ack")
         return waiting
+
+    def awaited_nodes(self, now: float) -> frozenset[str] | None:
+        """The nodes of the clients whose acknowledgement the step from sim time ``now`` (s)
+        waits for: what they decide on must reach them now, everything else can wait. None
+        when one of them has no known node (write to everyone)."""
+        nodes = set()
+        for client in self.clients.values():
+            if now > client.acked + self.latency_s + EPSILON:
+                if client.node is None:
+                    return None
+                nodes.add(client.node)
+        return frozenset(nodes)
 
     def holding(self, now: float) -> list[str]:
         """The clients that hold the simulation at sim time ``now`` (s), in registration order."""

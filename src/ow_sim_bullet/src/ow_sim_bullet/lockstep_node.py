@@ -58,7 +58,11 @@ class LockstepServer:
     def _on_register(self, request: Any) -> LockstepRegisterResponse:
         if not request.client:
             return LockstepRegisterResponse(False, "a lockstep client needs a name", 0.0, 0.0)
-        now, done = self.runner.lockstep_register(request.client, request.enable, request.hold)
+        # The caller's node: its subscriptions get the outputs first while it is waited for.
+        node = getattr(request, "_connection_header", {}).get("callerid")
+        now, done = self.runner.lockstep_register(
+            request.client, request.enable, request.hold, node
+        )
         rospy.loginfo(f"sim: lockstep: {done}")
         return LockstepRegisterResponse(True, done, now, self.runner.lockstep.latency_s)
 

@@ -9,7 +9,7 @@ rospy here.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from typing import Any, Protocol
 
 from geometry_msgs.msg import PointStamped, WrenchStamped
@@ -35,6 +35,12 @@ from owl_msgs.msg import ArmEndEffectorForceTorque
 #: lockstep client (every 0.1 s of sim time by default), stepped or paused, they are written at
 #: once.
 FLUSH_STEPS = 10
+#: physics steps whose outputs are written together to every subscriber while a lockstep client
+#: is registered. The nodes a step waits for (:meth:`SimOutputs.flush` with ``only``) get them
+#: each time it waits, every ~8 steps in a mission; the others (the recorder, the monitors) need
+#: them only in order and whole: written to every subscriber at each wait, they cost the
+#: simulation 3.4 of its 8.7 CPU-s in a mission (docs/performance.md, eleventh round).
+LOCKSTEP_FLUSH_STEPS = 50
 
 #: (topic, message class) of every output written with the wire publishers, in the order their
 #: queued messages are written: /clock first.
@@ -62,8 +68,9 @@ class WirePublisher(Protocol):
         """Queue the payload ``serialize(seq, *args)``."""
         ...
 
-    def flush(self) -> None:
-        """Write the queued payloads."""
+    def flush(self, only: Collection[str] | None = None) -> None:
+        """Write the queued payloads (to the subscribers of the nodes ``only``: the others'
+        wait for a flush for everyone)."""
         ...
 
 
@@ -200,22 +207,30 @@ class SimOutputs:
         if terrain and self._terrain_throttle.changed(self.sim.terrain_version):
             self.publish_terrain()
 
-    def after_step(self) -> None:
-        """Queue the outputs of the step just taken; write them every :data:`FLUSH_STEPS`."""
+    def after_step(self, lockstep: bool = False) -> None:
+        """Queue the outputs of the step just taken; write them to every subscriber every
+        :data:`FLUSH_STEPS` (with ``lockstep`` clients registered: every
+        :data:`LOCKSTEP_FLUSH_STEPS`)."""
         self.publish()
         self._unflushed_steps += 1
-        if self._unflushed_steps >= FLUSH_STEPS:
+        if self._unflushed_steps >= (LOCKSTEP_FLUSH_STEPS if lockstep else FLUSH_STEPS):
             self.flush()
 
-    def flush(self) -> None:
+    def flush(self, only: Collection[str] | None = None) -> None:
         """Write the queued messages, /clock first; tell ``on_clock`` the /clock written (once
-        per flush rather than at every tick: setting rospy's time costs ~10 us)."""
-        self._unflushed_steps = 0
+        per flush rather than at every tick: setting rospy's time costs ~10 us).
+
+        Args:
+            only: write to the subscribers of these nodes (caller ids) only; the others get
+                theirs at the next flush for everyone. None: everyone.
+        """
+        if only is None:
+            self._unflushed_steps = 0
         if self._on_clock is not None and self._clock_time != self._told_time:
             self._on_clock(self._clock_time)
             self._told_time = self._clock_time
         for publisher in self._publishers:
-            publisher.flush()
+            publisher.flush(only)
 
     def publish_terrain_if_due(self) -> None:
         """Publish the terrain if it changed and the last publication is old enough."""

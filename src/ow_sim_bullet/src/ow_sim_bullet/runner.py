@@ -133,13 +133,17 @@ class SimRunner:
 
         self.enqueue(command)
 
-    def lockstep_register(self, name: str, enable: bool, hold: bool) -> tuple[float, str]:
+    def lockstep_register(
+        self, name: str, enable: bool, hold: bool, node: str | None = None
+    ) -> tuple[float, str]:
         """Register ``name`` as a lockstep client at the current sim time (``enable``), or
-        unregister it; returns (sim time s, what was done)."""
+        unregister it; returns (sim time s, what was done). ``node``: the node (caller id) it
+        runs in: while the simulation waits for its acknowledgement, the outputs are written
+        to that node's subscriptions first (None: to everyone)."""
         with self._wake:
             now = self.sim.time
             if enable:
-                self.lockstep.register(name, now, hold, time.monotonic())
+                self.lockstep.register(name, now, hold, time.monotonic(), node)
                 done = f"{name} registered at t={now:.6f} s" + (", holding" if hold else "")
             elif self.lockstep.unregister(name):
                 done = f"{name} unregistered at t={now:.6f} s"
@@ -342,7 +346,13 @@ class SimRunner:
             blocked = self.lockstep.blocking(now)
         if blocked is None:
             return True
-        self._stand(terrain=blocked[1] == "hold")
+        if blocked[1] == "hold":
+            self._stand()
+        else:  # what the awaited clients decide on goes out now; the rest with the next batch
+            self.outputs.publish_standing(terrain=False)
+            with self._wake:
+                awaited = self.lockstep.awaited_nodes(now)
+            self.outputs.flush(only=awaited)
         with self._wake:
             while not self._is_shutdown() and not self._shutdown:
                 if return_on_command and self._paused:
@@ -351,7 +361,8 @@ class SimRunner:
                 if blocked is None:
                     return True
                 if blocked[1] == "hold":  # e.g. after an acknowledgement: the clock is out, the
-                    self.outputs.publish_standing()  # terrain's publisher queues (no flush)
+                    self.outputs.publish_standing()  # terrain's publisher queues
+                    self.outputs.flush()  # what only the awaited nodes had
                     self._stood_at = now  # under _wake
                 if stop_at_hold and blocked[1] == "hold":
                     return False
@@ -393,4 +404,4 @@ class SimRunner:
             if clipped is not None:
                 self._log(f"sim: lockstep command {clipped.describe()}")
         self.sim.step()
-        self.outputs.after_step()
+        self.outputs.after_step(lockstep=bool(self.lockstep.clients))

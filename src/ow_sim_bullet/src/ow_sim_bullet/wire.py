@@ -13,9 +13,10 @@ No rospy here: :class:`BatchPublisher` writes to the connections of a rospy publ
 from __future__ import annotations
 
 import struct
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from typing import Any
 
+from ow_lander.tcpros_write import write_or_drop
 from ow_sim_bullet.conversions import JointFrame, quaternion_from_matrix, stamp_parts
 from ow_sim_bullet.tool_tracking import FloatArray, ToolSnapshot
 
@@ -226,6 +227,10 @@ class BatchPublisher:
     simulation thread on a busy machine, much more than the message. TCPROS is a stream of
     length-prefixed messages, so subscribers receive exactly the same messages.
 
+    A flush may be for some subscribers only (the nodes a lockstep step waits for): the others
+    keep what was written to those, and get it, in order and whole, at the next flush for them
+    or for everyone.
+
     Args:
         publisher: a ``rospy.Publisher`` made with ``queue_size=None`` (kept, and its ``impl``).
         is_shutdown: whether the process is shutting down (nothing is written then).
@@ -240,6 +245,12 @@ class BatchPublisher:
         self._is_shutdown = is_shutdown
         self._log = log
         self._pending: list[bytes] = []
+        #: what the subscribers left out of a flush for some have not been written yet, by
+        #: connection (rospy's transport), oldest first.
+        self._behind: dict[Any, list[bytes]] = {}
+
+    def _log_sim(self, text: str) -> None:
+        self._log(f"sim: {text}")
 
     def publish(self, serialize: Callable[..., bytes], *args: Any) -> None:
         """Queue ``serialize(seq, *args)`` for the subscribers (not built if there is none)."""
@@ -251,24 +262,33 @@ class BatchPublisher:
             payload = serialize(impl.seq, *args)
             self._pending += (_U32.pack(len(payload)), payload)
 
-    def flush(self) -> None:
+    def flush(self, only: Collection[str] | None = None) -> None:
         """Write the queued messages to every subscriber (blocks while a subscriber lags); a
-        subscriber whose write fails is dropped, as rospy does."""
-        if not self._pending:
+        subscriber whose write fails is dropped, as rospy does.
+
+        Args:
+            only: the caller ids (node names) of the subscribers to write to now; the others'
+                messages wait for a later flush. None: every subscriber, all it is owed.
+        """
+        if not self._pending and (only is not None or not self._behind):
             return
         impl = self._impl
         with impl.publock:
             data = b"".join(self._pending)
             self._pending.clear()
             if impl.closed or self._is_shutdown():
+                self._behind.clear()
                 return
+            behind = self._behind
             for connection in list(impl.connections):
-                try:
-                    connection.write_data(data)
-                except Exception as error:  # what rospy does: drop the connection
-                    self._log(f"sim: dropping a subscriber of {impl.resolved_name}: {error}")
-                    try:
-                        connection.close()
-                    except Exception as close_error:
-                        self._log(f"sim: closing it failed too: {close_error}")
+                if only is not None and connection.endpoint_id not in only:
+                    if data:
+                        behind.setdefault(connection, []).append(data)
+                    continue
+                owed = behind.pop(connection, None)
+                out = data if owed is None else b"".join((*owed, data))
+                if out:
+                    write_or_drop(connection, out, impl.resolved_name, self._log_sim)
+            if only is None:  # what is left was owed to connections closed since
+                behind.clear()
             impl.message_data_sent += len(data)
