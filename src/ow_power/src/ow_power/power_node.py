@@ -8,6 +8,7 @@ from collections.abc import Callable, Sequence
 import rospy
 from sensor_msgs.msg import JointState
 
+from ow_lander.batched_publisher_node import BatchedPublisher
 from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.init_node import init_node, spin
 from ow_msgs.msg import Power
@@ -59,7 +60,7 @@ class PowerNode:
         """
         self._integrator = PowerIntegrator(config)
         self._listeners = tuple(listeners)
-        self._publisher = rospy.Publisher("power", Power, queue_size=PUBLISH_QUEUE)
+        self._publisher = BatchedPublisher("power", Power)
         self._subscriber = rospy.Subscriber(
             "joint_states", JointState, self._on_joint_states, queue_size=EVERY_MESSAGE
         )
