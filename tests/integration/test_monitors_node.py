@@ -125,3 +125,18 @@ def test_a_wrong_parameter_stops_the_node_naming_it(ros_stack):
             wait_for_topics=["/never"],
             timeout_s=30.0,
         )
+
+
+def test_a_battery_that_cannot_start_stops_the_node_naming_why(ros_stack):
+    """The monitors build the battery after their topics are up (ProgPy's imports are the
+    longest part of a mission's start); a pack that cannot start still stops the node, with
+    the battery's reason in its log."""
+    with pytest.raises(HarnessError, match=r"initial cell voltage .* at SOC 0\.01"):
+        ros_stack.start_node(
+            "ow_mission",
+            "monitors",
+            name="monitors_flat_battery",
+            params={"battery": {"initial_soc": 0.01}},
+            wait_for_topics=["/never"],
+            timeout_s=30.0,
+        )

@@ -102,7 +102,7 @@ class Monitors:
         self.detector = DetectorNode()
         # /power reaches the battery in this process: the topic's messages go out once, to
         # the other nodes, and are not serialised back to the node that made them.
-        self.battery = BatteryNode(battery, subscribe=False)
+        self.battery = BatteryNode(battery, subscribe=False, build_later=True)
         self.power = PowerNode(power, listeners=[self.battery.on_power])
         manager = rospy.impl.registration.get_topic_manager()
         for topic in EVERY_MESSAGE_TOPICS:
@@ -116,14 +116,14 @@ def main(argv: list[str] | None = None) -> int:
     """Run the monitors until shutdown; 1 on a configuration error."""
     init_node("monitors", argv=argv)
     try:
-        Monitors(rospy.get_param("~", {}))
+        monitors = Monitors(rospy.get_param("~", {}))
     except ConfigErrors as exc:
         rospy.logfatal(f"monitors: {exc}")
         return 1
     serving = " and the /faults server" if rospy.get_param(f"~{SERVE_FAULTS}", False) else ""
     rospy.loginfo(f"monitors: power, battery, telemetry, viz, the fault detector{serving} running")
     spin()
-    return 0
+    return 1 if monitors.battery.failure else 0
 
 
 if __name__ == "__main__":

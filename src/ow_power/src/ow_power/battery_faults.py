@@ -17,6 +17,8 @@ the :class:`~ow_power.battery.Battery` through its fault hooks:
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from ow_faults.injection import (
     FORCED_CAPACITY_LOSS,
     FORCED_LOW_SOC,
@@ -25,7 +27,9 @@ from ow_faults.injection import (
     PowerProfile,
     read_power_profile,
 )
-from ow_power.battery import Battery
+
+if TYPE_CHECKING:  # ow_power.battery imports ProgPy (~1 s), which a battery built later defers
+    from ow_power.battery import Battery
 
 
 class PowerFaults:

@@ -8,13 +8,16 @@ remaining useful life and the temperature, and ``sensor_msgs/BatteryState`` for 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import genpy
 from sensor_msgs.msg import BatteryState as BatteryStateMsg
 from std_msgs.msg import Header
 
-from ow_power.battery import BatteryState
 from owl_msgs.msg import BatteryRemainingUsefulLife, BatteryStateOfCharge, BatteryTemperature
+
+if TYPE_CHECKING:  # ow_power.battery imports ProgPy (~1 s)
+    from ow_power.battery import BatteryState
 
 #: Frame of the battery messages: the pack is in the lander body.
 FRAME_ID = "base_link"

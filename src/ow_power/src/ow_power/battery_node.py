@@ -6,6 +6,8 @@ import math
 import sys
 import threading
 from collections import deque
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import rospy
 from sensor_msgs.msg import BatteryState as BatteryStateMsg
@@ -16,13 +18,15 @@ from ow_faults.listener_node import FaultsListener
 from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.init_node import init_node, spin
 from ow_msgs.msg import Power
-from ow_power.battery import Battery
 from ow_power.battery_faults import PowerFaults
 from ow_power.battery_feed import LoadFeed
 from ow_power.battery_messages import battery_messages
 from ow_power.config import BatteryConfig
 from ow_power.errors import ConfigError, PowerError
 from owl_msgs.msg import BatteryRemainingUsefulLife, BatteryStateOfCharge, BatteryTemperature
+
+if TYPE_CHECKING:
+    from ow_power.battery import Battery
 
 # Every ``/power`` message, as the power node takes every joint state: a dropped one would
 # stretch the next interval (rospy's -1: no receive queue limit).
@@ -68,22 +72,35 @@ class BatteryNode:
             measurements), ``~noise_seed`` (int, default 0).
     """
 
-    def __init__(self, config: BatteryConfig, subscribe: bool = True) -> None:
+    def __init__(
+        self, config: BatteryConfig, subscribe: bool = True, build_later: bool = False
+    ) -> None:
         """Make the battery, advertise its topics and subscribe to ``power``.
 
         Args:
             config: the node's parameters.
             subscribe: take ``power`` from the topic; False: the caller hands every message to
                 :meth:`on_power` (a power node in the same process, ``ow_mission monitors``).
+            build_later: build the battery on a thread of its own, after the node's topics are
+                up (ProgPy's imports take ~1 s, the longest part of a mission's start): what
+                arrives before it is built is kept and taken, in order of arrival, once it
+                is. A pack that cannot start is then logged and shuts the node down
+                (:attr:`failure`).
 
         Raises:
-            PowerError: the configured pack cannot start (initial voltage at end of discharge).
+            PowerError: the configured pack cannot start (initial voltage at end of discharge),
+                when built at once.
         """
         self.config = config
-        self.battery = Battery(config)
-        self.faults = PowerFaults(self.battery)
+        self._built: tuple[Battery, PowerFaults] | None = None
+        #: why the battery could not be built on its own thread (the node shut down), or None.
+        self.failure: str | None = None
         self._lock = threading.Lock()  # the battery: /power and /faults arrive on two threads
         self._feed = LoadFeed(config.period_s, config.max_gap_s)
+        #: what arrived before the battery was built (build_later), in order; None once built.
+        self._early: list[tuple[Callable[..., None], tuple[Any, ...]]] | None = []
+        if not build_later:
+            self._build()
         self._publishers = [
             rospy.Publisher(topic, msg_type, queue_size=10, latch=True)
             for topic, msg_type in (
@@ -102,33 +119,73 @@ class BatteryNode:
         self._pending: deque[tuple[float, FaultSet]] = deque()
         self._last_power_s = -math.inf  # s (sim), the newest /power taken
         self._faults = FaultsListener(self._on_faults, "battery")
+        if build_later:
+            threading.Thread(target=self._build_and_catch_up, name="battery", daemon=True).start()
+
+    def _build(self) -> None:
+        """Build the battery and its faults; take what arrived before, in order."""
+        from ow_power.battery import Battery  # ProgPy, scipy, pandas, matplotlib: ~1 s
+
+        battery = Battery(self.config)
+        with self._lock:
+            self._built = battery, PowerFaults(battery)
+            early, self._early = self._early or [], None
+            for take, args in early:
+                take(*args)
+
+    def _build_and_catch_up(self) -> None:
+        try:
+            self._build()
+        except Exception as exc:  # a pack that cannot start, or a broken install: say why
+            self.failure = f"battery: {exc}"
+            rospy.logfatal(self.failure)
+            rospy.signal_shutdown(self.failure)
+
+    def built(self) -> tuple[Battery, PowerFaults]:
+        """The battery and its injected power faults (RuntimeError until they are built)."""
+        if self._built is None:
+            msg = "the battery is not built yet"
+            raise RuntimeError(msg)
+        return self._built
 
     def _on_faults(self, faults: FaultSet, stamp_s: float) -> None:
         """Faults holding from sim time ``stamp_s``: applied before the first ``/power``
         stamped after it (at once when one has already been taken), whenever each arrives."""
         with self._lock:
-            if stamp_s < self._last_power_s:
-                self._apply_faults(faults)
+            if self._early is not None:
+                self._early.append((self._take_faults, (faults, stamp_s)))
             else:
-                self._pending.append((stamp_s, faults))
+                self._take_faults(faults, stamp_s)
+
+    def _take_faults(self, faults: FaultSet, stamp_s: float) -> None:
+        if stamp_s < self._last_power_s:
+            self._apply_faults(faults)
+        else:
+            self._pending.append((stamp_s, faults))
 
     def _apply_faults(self, faults: FaultSet) -> None:
         try:
-            events = self.faults.update(faults)
+            events = self.built()[1].update(faults)
         except (FaultError, PowerError) as error:
             rospy.logerr(f"battery: power fault not applied: {error}")
             return
         for event in events:
-            rospy.logwarn(f"battery: {event} at {self.battery.state.time_s:.1f} s")
+            rospy.logwarn(f"battery: {event} at {self.built()[0].state.time_s:.1f} s")
 
     def on_power(self, msg: Power) -> None:
         """Take one ``power`` message (in stamp order, each once)."""
         with self._lock:
-            stamp = msg.header.stamp.to_sec()
-            while self._pending and self._pending[0][0] < stamp:
-                self._apply_faults(self._pending.popleft()[1])
-            self._last_power_s = max(self._last_power_s, stamp)
-            self._take_power(msg)
+            if self._early is not None:
+                self._early.append((self._take_message, (msg,)))
+            else:
+                self._take_message(msg)
+
+    def _take_message(self, msg: Power) -> None:
+        stamp = msg.header.stamp.to_sec()
+        while self._pending and self._pending[0][0] < stamp:
+            self._apply_faults(self._pending.popleft()[1])
+        self._last_power_s = max(self._last_power_s, stamp)
+        self._take_power(msg)
 
     def _take_power(self, msg: Power) -> None:
         restarts = self._feed.restarts
@@ -143,10 +200,11 @@ class BatteryNode:
                 f"battery: /power at {msg.header.stamp.to_sec():.3f} s follows a gap longer than "
                 f"{self.config.max_gap_s} s or goes back in time; gap not drained",
             )
+        battery, power_faults = self.built()
         for period in periods:
-            was_depleted = self.battery.state.depleted
-            self.battery.set_extra_load(self.faults.extra_load_w())
-            state = self.battery.update(period.mean_load_w, period.duration_s)
+            was_depleted = battery.state.depleted
+            battery.set_extra_load(power_faults.extra_load_w())
+            state = battery.update(period.mean_load_w, period.duration_s)
             if state.depleted and not was_depleted:
                 rospy.logerr(
                     f"battery: end of discharge at {period.end_s:.1f} s "
@@ -156,7 +214,7 @@ class BatteryNode:
                 state,
                 rospy.Time.from_sec(period.end_s),
                 self.config.cells_in_series,
-                self.battery.capacity_c,
+                battery.capacity_c,
             )
             for publisher, message in zip(self._publishers, messages, strict=True):
                 publisher.publish(message)
@@ -171,7 +229,7 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigError, PowerError) as exc:
         rospy.logfatal(f"battery: {exc}")
         return 1
-    state = node.battery.state
+    state = node.built()[0].state
     rospy.loginfo(
         f"battery: {config.cells_in_series} cells in series, SOC {state.soc:.3f}, "
         f"{state.voltage_v:.2f} V, {state.temperature_c:.1f} degC, "
