@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import sys
 import threading
+import warnings
 from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
@@ -28,8 +29,11 @@ from owl_msgs.msg import BatteryRemainingUsefulLife, BatteryStateOfCharge, Batte
 if TYPE_CHECKING:
     from ow_power.battery import Battery
 
-# Every ``/power`` message, as the power node takes every joint state: a dropped one would
-# stretch the next interval (rospy's -1: no receive queue limit).
+#: The battery topics' rospy queue: None, written in the callback. A queue drops its oldest
+#: messages beyond its size, and the battery publishes in bursts: the periods it catches up on
+#: once built (build_later), or after its node was descheduled. With 10, a mission's bag lost
+#: /battery_temperature and /battery_remaining_useful_life of nine periods in a row.
+PUBLISH_QUEUE = None
 
 
 class BatteryNode:
@@ -101,16 +105,19 @@ class BatteryNode:
         self._early: list[tuple[Callable[..., None], tuple[Any, ...]]] | None = []
         if not build_later:
             self._build()
-        self._publishers = [
-            rospy.Publisher(topic, msg_type, queue_size=10, latch=True)
-            for topic, msg_type in (
-                ("battery_state_of_charge", BatteryStateOfCharge),
-                ("battery_remaining_useful_life", BatteryRemainingUsefulLife),
-                ("battery_temperature", BatteryTemperature),
-                ("battery_state", BatteryStateMsg),
-            )
-        ]
+        with warnings.catch_warnings():  # rospy warns of queue_size None
+            warnings.simplefilter("ignore", SyntaxWarning)
+            self._publishers = [
+                rospy.Publisher(topic, msg_type, queue_size=PUBLISH_QUEUE, latch=True)
+                for topic, msg_type in (
+                    ("battery_state_of_charge", BatteryStateOfCharge),
+                    ("battery_remaining_useful_life", BatteryRemainingUsefulLife),
+                    ("battery_temperature", BatteryTemperature),
+                    ("battery_state", BatteryStateMsg),
+                )
+            ]
         self._subscriber = (
+            # Every /power message: a dropped one would stretch the next interval.
             rospy.Subscriber("power", Power, self.on_power, queue_size=EVERY_MESSAGE)
             if subscribe
             else None
