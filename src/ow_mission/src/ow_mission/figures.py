@@ -16,6 +16,7 @@ Who needs the figures waits for them: ``python -m ow_mission.figures --wait RUN_
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import time
@@ -61,6 +62,7 @@ def start_figures(run_dir: Path, renders: bool) -> FiguresProcess:
             stdout=log,
             stderr=subprocess.STDOUT,
             start_new_session=True,
+            env={"OPENBLAS_NUM_THREADS": "1", **os.environ},  # as the nodes (NODE_ENVIRONMENT)
         )
     (run_dir / PID_FILE).write_text(f"{proc.pid}\n")
     return proc

@@ -141,7 +141,6 @@ class MissionRunner:
         return self.report
 
     def _start(self, stack: RosStack) -> list[NodeProcess]:
-        init_node("mission", disable_signals=True)
         params = node_parameters(self.config, self.run_dir)
         self._drain = drain_periods(params)
         self._hold = bool(params["arm_services"]["execution"].get("lockstep_hold"))
@@ -152,6 +151,7 @@ class MissionRunner:
             stack.start_node(p.package, p.executable, params=p.params, wait=False)
             for p in processes
         ]
+        init_node("mission", disable_signals=True)  # while they import (rospy's takes 0.1 s)
         for node, process in zip(nodes, processes, strict=True):
             stack.wait_ready(node, process.services, process.topics)
         rospy.Subscriber("/clock", Clock, self._on_clock, queue_size=10)

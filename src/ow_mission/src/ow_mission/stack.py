@@ -42,6 +42,11 @@ def free_port() -> int:
 #: docstrings are never read while it runs, and they took ~20 MB of the mission's stack
 #: (docs/performance.md, tenth round).
 NODE_PYTHON_OPTIMIZE = "2"
+#: What a stack adds to its nodes' environment: :data:`NODE_PYTHON_OPTIMIZE`, and one thread for
+#: OpenBLAS (numpy's and scipy's). The nodes' matrices are a few rows: a pool of BLAS threads
+#: per process did nothing for them but start, ~0.14 CPU-s per process importing numpy
+#: (docs/performance.md, eleventh round). A user's own environment wins.
+NODE_ENVIRONMENT = {"PYTHONOPTIMIZE": NODE_PYTHON_OPTIMIZE, "OPENBLAS_NUM_THREADS": "1"}
 
 
 @functools.cache
@@ -374,7 +379,7 @@ class RosStack:
         log = log_path.open("wb")
         proc = subprocess.Popen(
             [*node_command(package, executable), f"__name:={node_name}", *args],
-            env={**self.master.env, "PYTHONOPTIMIZE": NODE_PYTHON_OPTIMIZE},
+            env={**NODE_ENVIRONMENT, **self.master.env, "PYTHONOPTIMIZE": NODE_PYTHON_OPTIMIZE},
             stdout=log,
             stderr=subprocess.STDOUT,
             stdin=subprocess.DEVNULL,
