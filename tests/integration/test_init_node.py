@@ -172,3 +172,41 @@ def test_a_node_that_exits_without_shutting_down_leaves_the_master(ros_master):
     )
     assert proc.returncode == 1, proc.stderr
     assert "/refusing_topic" not in {name for name, _ in ros_master.call("getSystemState")[0]}
+
+
+SLEEP_CHILD = """
+import os, signal, sys, threading
+import rospy, rospy.core, rospy.rostime
+import ow_lander.init_node as init_node
+
+sleeps = []  # rospy's wall sleeps in the main thread
+real = rospy.rostime.wallsleep
+def watched(duration):
+    if threading.current_thread() is threading.main_thread():
+        sleeps.append(duration)
+    real(duration)
+rospy.rostime.wallsleep = watched
+if sys.argv[1] == "ours":
+    init_node.init_node("sleep_test")
+else:
+    rospy.init_node("sleep_test")
+if sys.argv[2] == "signal":
+    threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGINT)).start()
+    try:
+        init_node.spin()
+    except KeyboardInterrupt:  # rospy's handler chains to Python's
+        pass
+else:
+    init_node.signal_shutdown("done") if sys.argv[1] == "ours" else rospy.signal_shutdown("done")
+print(rospy.core.is_shutdown(), bool(sleeps))
+"""
+
+
+@pytest.mark.parametrize("how", ["signal", "call"])
+@pytest.mark.parametrize(("node", "slept"), [("ours", "False"), ("bare", "True")])
+def test_a_node_shuts_down_without_rospys_sleep_in_its_main_thread(ros_master, how, node, slept):
+    """rospy's signal_shutdown ends with a 0.1 s sleep ("a hack until we get rid of all the
+    extra threads") in the thread that calls it, the main thread for a signal: each node of a
+    mission's stack paid it at its stop, then the mission. init_node's handlers and
+    signal_shutdown run it on a thread of their own and return once the hooks have run."""
+    assert _words(ros_master, SLEEP_CHILD, node, how) == ["True", slept]

@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import signal
 import sys
 import threading
 from typing import Any, NoReturn
@@ -26,12 +27,45 @@ from rospy.impl.registration import RegManager, get_registration_listeners
 TCPROS_BACKLOG = 128
 
 
+#: s of wall time :func:`signal_shutdown` waits for rospy's shutdown hooks.
+HOOKS_TIMEOUT_S = 5.0
+
+
 def init_node(name: str, **kwargs: Any) -> None:
     """``rospy.init_node(name, **kwargs)``, then :func:`stop_promptly` and
-    :func:`accept_many`."""
+    :func:`accept_many`; unless ``disable_signals``, SIGINT and SIGTERM shut the node down
+    through :func:`signal_shutdown`'s thread (rospy's handler sleeps 0.1 s in the main thread
+    after the hooks, and raises KeyboardInterrupt there)."""
     rospy.init_node(name, **kwargs)
     stop_promptly()
     accept_many()
+    if not kwargs.get("disable_signals", False):
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, _on_signal)
+
+
+def _on_signal(signum: int, _frame: Any) -> None:
+    _shut_down_in_background(f"signal-{signum}")
+
+
+def _shut_down_in_background(reason: str) -> threading.Event:
+    """Run ``rospy.signal_shutdown(reason)`` on a thread of its own; the event is set once its
+    shutdown hooks have run (the node has left the master and closed its connections)."""
+    hooks_done = threading.Event()
+    rospy.core.add_shutdown_hook(lambda _reason: hooks_done.set())  # after the others
+    threading.Thread(
+        target=rospy.core.signal_shutdown, args=(reason,), name="shutdown", daemon=True
+    ).start()
+    return hooks_done
+
+
+def signal_shutdown(reason: str) -> None:
+    """``rospy.signal_shutdown(reason)``, returning once its hooks have run: rospy then joins
+    its threads and sleeps 0.1 s ("a hack until we get rid of all the extra threads"), which
+    each node of a mission's stack paid in turn at its stop, and the mission once more."""
+    if not rospy.core.is_initialized() or rospy.core.is_shutdown():
+        return
+    _shut_down_in_background(reason).wait(HOOKS_TIMEOUT_S)
 
 
 def accept_many() -> None:
@@ -96,8 +130,7 @@ def exit_now(code: int | None = 0) -> NoReturn:
     Args:
         code: the exit status (None: 0, as ``sys.exit``).
     """
-    if rospy.core.is_initialized() and not rospy.core.is_shutdown():
-        rospy.core.signal_shutdown("exit")
+    signal_shutdown("exit")
     logging.shutdown()
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(OSError, ValueError):  # closed or gone: nothing to write

@@ -19,7 +19,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 import ow_msgs.srv
-from ow_lander.init_node import init_node
+from ow_lander.init_node import init_node, signal_shutdown
 from ow_lander.lockstep_node import LockstepError, wait_until_held
 from ow_mission.action_client_node import ActionStepClient
 from ow_mission.bag_prefetch import BagPrefetch
@@ -125,15 +125,15 @@ class MissionRunner:
                         end, state = 0.0, -1.0
                     state = state if state >= 0.0 else self._last_joint_stamp()
                     self.report.sim_time_s = max(end, state, self._clock)
-                    # The report's imports while the stack stops (not ~50 MB during the steps).
-                    threading.Thread(target=preload, name="report_preload", daemon=True).start()
-                    # The nodes may still be working through the last states (a loaded
-                    # machine lost 0.35 s of /power): stop once the recorder has all of them.
+                    # The report's imports while the stack stops (not during the steps).
+                    draw = (self.config.figures == "inline",)
+                    threading.Thread(target=preload, args=draw, daemon=True).start()
+                    # Stop once the recorder has the last states (a loaded run lost 0.35 s).
                     self.report.recording_note = wait_recorded(state, self._drain, DRAIN_TIMEOUT_S)
                     # The closed split files are read while the stack stops (docs/mission.md).
                     prefetch = BagPrefetch(self.run_dir / "bags", report_reader(self.config))
-                    stack.shutdown(last=("record",))  # it closes its bag on SIGINT
-                    rospy.signal_shutdown("mission done")  # leaves the master while it runs
+                    stack.shutdown(last=("record",), delete_params=False)  # the bag: at SIGINT
+                    signal_shutdown("mission done")  # leaves the master while it runs
         except (HarnessError, ConfigError) as exc:
             self.report.error = str(exc)
         self.report.wall_time_s = time.monotonic() - wall0

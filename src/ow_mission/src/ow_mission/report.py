@@ -480,13 +480,20 @@ def _figures_from_bags(
             pool.shutdown(wait=True, cancel_futures=True)
 
 
-def preload() -> None:
-    """Import what :func:`write_run_report` imports only when it runs (matplotlib with its Agg
-    backend, pandas through ``ow_power.analysis``, the plots, PIL and pybullet for the
-    renders): a mission does it on a thread while its stack stops (mostly waiting for the
-    nodes to exit), so that about a second of imports leaves the report's critical path
-    without adding ~50 MB to the stack's memory during the steps. The replay's and the stills'
-    forked processes then have them too."""
+def preload(draw: bool = True) -> None:
+    """Import what :func:`write_run_report` imports only when it runs: pandas through
+    ``ow_power.analysis`` and the faults' section for the numbers, and with ``draw``
+    matplotlib with its Agg backend, the plots, PIL and pybullet for the renders. A mission
+    does it on a thread while its stack stops (mostly waiting for the nodes to exit), so that
+    the imports leave the report's critical path without adding to the stack's memory during
+    the steps. The replay's and the stills' forked processes then have them too. A mission
+    whose figures are drawn after it exits does not draw: the drawing's imports (~50 MB, and
+    CPU the stopping stack wanted) were the peak of its memory."""
+    import ow_mission.fault_report
+    import ow_power.analysis  # noqa: F401
+
+    if not draw:
+        return
     import matplotlib
 
     matplotlib.use("Agg")
@@ -494,10 +501,8 @@ def preload() -> None:
     import PIL.Image  # noqa: F401
     import pybullet  # noqa: F401
 
-    import ow_mission.fault_report
     import ow_mission.plots
     import ow_mission.render  # noqa: F401
-    import ow_power.analysis  # noqa: F401
 
 
 def write_run_report(

@@ -14,7 +14,7 @@ from typing import Any
 import rospy
 from std_msgs.msg import String
 
-from ow_lander.init_node import init_node
+from ow_lander.init_node import init_node, signal_shutdown
 from ow_msgs.srv import RecorderProgress, RecorderProgressRequest, RecorderProgressResponse
 from ow_power.bagwriter import SplitBagWriter, record_time_ns
 from ow_power.config import RecorderConfig
@@ -175,7 +175,7 @@ def main(argv: list[str] | None = None) -> int:
         recorder = RecorderNode(config, directory)
     except (ConfigError, RecorderError) as exc:
         rospy.logfatal(f"record: {exc}")
-        rospy.signal_shutdown(str(exc))
+        signal_shutdown(str(exc))
         return 1
     rospy.loginfo(
         f"record: {', '.join(config.topics)} -> {directory}/{recorder.run_name}_*.bag "
@@ -194,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
             rospy.logerr(f"record: {exc}")
             status = 1
         recorder.publish_status()
-        rospy.signal_shutdown("recorder stopped")
+        signal_shutdown("recorder stopped")  # without rospy's 0.1 s sleep
     return status
 
 
