@@ -11,6 +11,7 @@ import rospy
 from std_srvs.srv import Empty
 
 from ow_mission.stack import (
+    NODE_ENVIRONMENT,
     NODE_PYTHON_OPTIMIZE,
     NodeProcess,
     RosMaster,
@@ -58,7 +59,7 @@ def test_a_node_runs_as_the_program_rosrun_finds_for_it(package, executable):
 def test_the_stacks_python_nodes_run_without_docstrings_and_one_blas_thread(ros_master):
     """PYTHONOPTIMIZE=2 (python -OO) in the environment of every node a stack starts: the
     node's Python reads it at start-up, so its modules load without their docstrings; and
-    OPENBLAS_NUM_THREADS=1 unless the user's environment says otherwise."""
+    one OpenBLAS thread and one malloc arena, unless the user's environment says otherwise."""
     stack = RosStack(ros_master)
     node = stack.start_node(
         "ow_power", "power", name="harness_power", wait_for_topics=["/power"], timeout_s=60.0
@@ -67,8 +68,9 @@ def test_the_stacks_python_nodes_run_without_docstrings_and_one_blas_thread(ros_
         environ = Path(f"/proc/{node.proc.pid}/environ").read_bytes().split(b"\0")
         assert f"PYTHONOPTIMIZE={NODE_PYTHON_OPTIMIZE}".encode() in environ
         assert NODE_PYTHON_OPTIMIZE == "2"
-        blas = os.environ.get("OPENBLAS_NUM_THREADS", "1")
-        assert f"OPENBLAS_NUM_THREADS={blas}".encode() in environ
+        for key, value in NODE_ENVIRONMENT.items():
+            if key != "PYTHONOPTIMIZE":  # the user's own wins
+                assert f"{key}={os.environ.get(key, value)}".encode() in environ
     finally:
         stack.shutdown()
 

@@ -62,7 +62,8 @@ def start_figures(run_dir: Path, renders: bool) -> FiguresProcess:
             stdout=log,
             stderr=subprocess.STDOUT,
             start_new_session=True,
-            env={"OPENBLAS_NUM_THREADS": "1", **os.environ},  # as the nodes (NODE_ENVIRONMENT)
+            # As the nodes (ow_mission.stack.NODE_ENVIRONMENT; not imported: a process' worth).
+            env={"OPENBLAS_NUM_THREADS": "1", "MALLOC_ARENA_MAX": "1", **os.environ},
         )
     (run_dir / PID_FILE).write_text(f"{proc.pid}\n")
     return proc

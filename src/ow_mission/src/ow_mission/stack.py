@@ -42,11 +42,18 @@ def free_port() -> int:
 #: docstrings are never read while it runs, and they took ~20 MB of the mission's stack
 #: (docs/performance.md, tenth round).
 NODE_PYTHON_OPTIMIZE = "2"
-#: What a stack adds to its nodes' environment: :data:`NODE_PYTHON_OPTIMIZE`, and one thread for
-#: OpenBLAS (numpy's and scipy's). The nodes' matrices are a few rows: a pool of BLAS threads
-#: per process did nothing for them but start, ~0.14 CPU-s per process importing numpy
-#: (docs/performance.md, eleventh round). A user's own environment wins.
-NODE_ENVIRONMENT = {"PYTHONOPTIMIZE": NODE_PYTHON_OPTIMIZE, "OPENBLAS_NUM_THREADS": "1"}
+#: What a stack adds to its nodes' environment: :data:`NODE_PYTHON_OPTIMIZE`; one thread for
+#: OpenBLAS (numpy's and scipy's): the nodes' matrices are a few rows, and a pool of BLAS threads
+#: per process did nothing for them but start, ~0.14 CPU-s per process importing numpy; and
+#: one glibc malloc arena: rospy's threads (one per connection) each took an arena of their
+#: own, and the stack's peak PSS during a mission was 474-476 MB with one against 494-500 MB
+#: (docs/performance.md, eleventh round). The nodes' threads take turns at the GIL anyway. A
+#: user's own setting wins.
+NODE_ENVIRONMENT = {
+    "PYTHONOPTIMIZE": NODE_PYTHON_OPTIMIZE,
+    "OPENBLAS_NUM_THREADS": "1",
+    "MALLOC_ARENA_MAX": "1",
+}
 
 
 @functools.cache
@@ -443,12 +450,14 @@ class RosStack:
         self.wait_for_service(name, timeout_s)
         return service_proxy(name, service_class)
 
-    def shutdown(self, last: Iterable[str] = ()) -> None:
+    def shutdown(self, last: Iterable[str] = (), delete_params: bool = True) -> None:
         """Stop every node started here and delete the parameters set for them.
 
         Args:
             last: names of nodes stopped only once all the others have exited, e.g. a recorder:
                 it then has every message they sent (their connections close after them).
+            delete_params: False for a master about to close (a mission's): deleting its ~50
+                parameters one call each took 0.13 s.
 
         Each wave is interrupted at once, then waited for (10 s at most, then killed): a node
         takes about a second to shut rospy down, and one after the other that added up.
@@ -464,7 +473,7 @@ class RosStack:
             for node in reversed(wave):
                 _end_process_group(node.proc, max(0.0, deadline - time.monotonic()))
         self.nodes.clear()
-        for key in self.params:
+        for key in self.params if delete_params else ():
             self.master.delete_param(key)
         self.params.clear()
 
