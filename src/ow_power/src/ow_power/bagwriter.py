@@ -132,7 +132,7 @@ def header_stamp_ns(data: bytes) -> int:
     return secs * 1_000_000_000 + nsecs
 
 
-def record_time_ns(msgdef: str, data: bytes, arrival_ns: int) -> int:
+def record_time_ns(msgdef: str, data: bytes, arrival_ns: int, zero_is_a_time: bool = False) -> int:
     """ns, the bag time of a message: its stamp (:func:`stamp_offset`: ``header.stamp``, or
     the first transform's or marker's of a list of them) when it has one and it is set, else
     ``arrival_ns`` (the receipt time on the ROS clock).
@@ -147,6 +147,9 @@ def record_time_ns(msgdef: str, data: bytes, arrival_ns: int) -> int:
         msgdef: the full message definition, as in the connection header.
         data: the message in ROS 1 wire format.
         arrival_ns: ns, when the message arrived (simulation clock).
+        zero_is_a_time: a stamp of 0 is a time (on simulation time: its start, e.g. the first
+            joint state's and its ``/power``), not a stamp left unset. Taken as unset, the first
+            ``/power`` went in at its arrival, which depended on the load (0 or 0.5 s).
 
     Raises:
         RecorderError: a message declared with a Header is too short to hold one.
@@ -158,8 +161,8 @@ def record_time_ns(msgdef: str, data: bytes, arrival_ns: int) -> int:
         secs, nsecs = _STAMP.unpack_from(data, 8)
         stamp_ns = secs * 1_000_000_000 + nsecs
     else:
-        stamp_ns = 0
-    return stamp_ns or arrival_ns
+        return arrival_ns
+    return stamp_ns if stamp_ns or zero_is_a_time else arrival_ns
 
 
 def run_name(directory: Path, prefix: str, start: datetime) -> str:

@@ -102,8 +102,11 @@ class RecorderNode:
     def _on_message(self, msg: Any, topic: str) -> None:
         header = msg._connection_header
         msgdef = header["message_definition"]
-        # The clock is read only for a message without a stamp (a Time object per message).
-        stamp_ns = record_time_ns(msgdef, msg._buff, 0) or rospy.get_rostime().to_nsec()
+        # The clock is read only for a message without a stamp (a Time object per message); on
+        # simulation time a stamp of 0 is its start.
+        stamp_ns = record_time_ns(msgdef, msg._buff, -1, not rospy.rostime.is_wallclock())
+        if stamp_ns < 0:
+            stamp_ns = rospy.get_rostime().to_nsec()
         try:
             written = self._bags.write(
                 topic,
