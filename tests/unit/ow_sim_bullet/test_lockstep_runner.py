@@ -132,6 +132,22 @@ def test_waiting_for_an_acknowledgement_writes_to_the_clients_node_and_a_hold_to
     assert runner.outputs.flushes[-1] == (pytest.approx(waiting_at), None)
 
 
+def test_an_acknowledgement_long_in_coming_gets_everyone_their_messages(runner):
+    """A client whose decisions come from another node's subscriptions would wait for ever
+    for messages written to its own node only: after 0.1 s of wall time without an
+    acknowledgement, everyone gets everything (the same messages: nothing else changes)."""
+    runner.lockstep_register("arm", enable=True, hold=False, node="/elsewhere")
+    runner.resume()
+    deadline = time.monotonic() + 5.0
+    while runner.lockstep_status()[3] is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    waiting_at = runner.lockstep_status()[0]
+    while (waiting_at, None) not in runner.outputs.flushes and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert (waiting_at, frozenset({"/elsewhere"})) in runner.outputs.flushes
+    assert (waiting_at, None) in runner.outputs.flushes
+
+
 def test_a_simulation_paused_at_a_hold_takes_no_step_when_its_client_leaves(runner):
     """A mission pauses the simulation where the lockstep holds it, then stops its nodes: the
     arm services leaving the lockstep must not let it take a step (a replay recorded one more

@@ -375,7 +375,8 @@ class SimRunner:
                         f"{self.lockstep_timeout_s:g} s of wall time (waiting at t={now:.3f} s): "
                         "dropped from the lockstep"
                     )
-                self._wake.wait(timeout=_POLL_S)
+                if not self._wake.wait(timeout=_POLL_S):  # nothing for a while: everything
+                    self.outputs.flush()  # to everyone (a client deciding on another node's)
                 self.outputs.publish_terrain_if_due()
         return False
 
