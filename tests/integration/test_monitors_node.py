@@ -115,28 +115,26 @@ def test_a_fault_change_is_acknowledged_once_by_the_node_after_every_component(s
         stack.client.update_configuration({"activate_high_power_draw": False})
 
 
-def test_a_wrong_parameter_stops_the_node_naming_it(ros_stack):
-    with pytest.raises(HarnessError, match="motor_efficiency"):
+def _refused(ros_stack, name: str, params: dict, match: str) -> None:
+    """A monitors node started with ``params`` stops, its log matching ``match``."""
+    with pytest.raises(HarnessError, match=match):
         ros_stack.start_node(
             "ow_mission",
             "monitors",
-            name="monitors_bad",
-            params={"power": {"motor_efficiency": 2.0}},
+            name=name,
+            params=params,
             wait_for_topics=["/never"],
             timeout_s=30.0,
         )
+
+
+def test_a_wrong_parameter_stops_the_node_naming_it(ros_stack):
+    _refused(ros_stack, "monitors_bad", {"power": {"motor_efficiency": 2.0}}, "motor_efficiency")
 
 
 def test_a_battery_that_cannot_start_stops_the_node_naming_why(ros_stack):
     """The monitors build the battery after their topics are up (ProgPy's imports are the
     longest part of a mission's start); a pack that cannot start still stops the node, with
     the battery's reason in its log."""
-    with pytest.raises(HarnessError, match=r"initial cell voltage .* at SOC 0\.01"):
-        ros_stack.start_node(
-            "ow_mission",
-            "monitors",
-            name="monitors_flat_battery",
-            params={"battery": {"initial_soc": 0.01}},
-            wait_for_topics=["/never"],
-            timeout_s=30.0,
-        )
+    params = {"battery": {"initial_soc": 0.01}}
+    _refused(ros_stack, "monitors_flat_battery", params, r"initial cell voltage .* at SOC 0\.01")

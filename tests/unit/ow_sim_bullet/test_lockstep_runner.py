@@ -96,12 +96,20 @@ def test_a_hold_shows_only_once_the_simulation_stands_with_its_terrain_written(r
     assert seen_holding == [pytest.approx(0.1)]
 
 
-def test_a_late_acknowledgement_holds_the_simulation_back_until_it_comes(runner):
-    runner.lockstep_register("arm", enable=True, hold=False)
+def _waiting_for_ack(runner, node: str | None = None) -> float:
+    """Register client "arm" (of ``node``) without a hold, run, and return the sim time (s)
+    where the simulation waits for its acknowledgement."""
+    runner.lockstep_register("arm", enable=True, hold=False, node=node)
     runner.resume()
     deadline = time.monotonic() + 5.0
     while runner.lockstep_status()[3] is None and time.monotonic() < deadline:
         time.sleep(0.01)
+    return runner.lockstep_status()[0]
+
+
+def test_a_late_acknowledgement_holds_the_simulation_back_until_it_comes(runner):
+    _waiting_for_ack(runner)
+    deadline = time.monotonic() + 5.0
     now, _, _, blocked, holding, _ = runner.lockstep_status()
     assert (blocked, holding) == (("arm", "ack"), [])
     assert now == pytest.approx(LATENCY + 0.01)  # registered at 0: one latency and a step on
@@ -119,12 +127,8 @@ def test_waiting_for_an_acknowledgement_writes_to_the_clients_node_and_a_hold_to
     """What a client decides on must reach it before the simulation can go on; the other
     subscribers (recorder, monitors) get the same messages later, in bigger batches. Where the
     simulation stands held, everything goes out to everyone."""
-    runner.lockstep_register("arm", enable=True, hold=False, node="/arm_services")
-    runner.resume()
+    waiting_at = _waiting_for_ack(runner, node="/arm_services")
     deadline = time.monotonic() + 5.0
-    while runner.lockstep_status()[3] is None and time.monotonic() < deadline:
-        time.sleep(0.01)
-    waiting_at = runner.lockstep_status()[0]
     assert (waiting_at, frozenset({"/arm_services"})) in runner.outputs.flushes
     runner.lockstep_ack("arm", waiting_at, waiting_at, [])  # holds right where it waits
     while runner.lockstep_status()[4] != ["arm"] and time.monotonic() < deadline:
@@ -136,12 +140,8 @@ def test_an_acknowledgement_long_in_coming_gets_everyone_their_messages(runner):
     """A client whose decisions come from another node's subscriptions would wait for ever
     for messages written to its own node only: after 0.1 s of wall time without an
     acknowledgement, everyone gets everything (the same messages: nothing else changes)."""
-    runner.lockstep_register("arm", enable=True, hold=False, node="/elsewhere")
-    runner.resume()
+    waiting_at = _waiting_for_ack(runner, node="/elsewhere")
     deadline = time.monotonic() + 5.0
-    while runner.lockstep_status()[3] is None and time.monotonic() < deadline:
-        time.sleep(0.01)
-    waiting_at = runner.lockstep_status()[0]
     while (waiting_at, None) not in runner.outputs.flushes and time.monotonic() < deadline:
         time.sleep(0.01)
     assert (waiting_at, frozenset({"/elsewhere"})) in runner.outputs.flushes

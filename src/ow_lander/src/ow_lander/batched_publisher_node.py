@@ -1,8 +1,8 @@
 """A rospy publisher whose messages are written by a thread of its own, all those published
 since its last write in one socket write per subscriber (rospy wiring only).
 
-A node that publishes one message per joint state it receives (the power node's ``/power``,
-the telemetry) gets them in batches: the simulation writes several joint states at once, and
+A node that publishes one message per joint state it receives (the power node's ``/power``)
+gets them in batches: the simulation writes several joint states at once, and
 rospy calls the callback for each in turn. Written in the callback (rospy's ``queue_size=None``)
 each message is one socket write, which wakes the subscriber; rospy's queued publisher also
 writes them one by one, and yields the processor after each (``time.sleep(0)``). Here the
@@ -37,29 +37,20 @@ class BatchedPublisher:
     Args:
         topic: the topic (resolved as rospy resolves it).
         msg_type: the message class.
-        tcp_nodelay: ask subscribers for TCP_NODELAY (as rospy's argument).
     """
 
-    def __init__(self, topic: str, msg_type: type, tcp_nodelay: bool = False) -> None:
+    def __init__(self, topic: str, msg_type: type) -> None:
         with warnings.catch_warnings():  # rospy warns of queue_size None
             warnings.simplefilter("ignore", SyntaxWarning)
-            self.publisher = rospy.Publisher(
-                topic, msg_type, queue_size=None, tcp_nodelay=tcp_nodelay
-            )
+            self.publisher = rospy.Publisher(topic, msg_type, queue_size=None)
         self._impl = self.publisher.impl
         self._buffer = BytesIO()
         self._ready = threading.Condition(threading.Lock())
         self._pending: list[bytes] = []
-        self._thread = threading.Thread(
+        threading.Thread(
             target=self._write_loop, name=f"{self._impl.resolved_name} writer", daemon=True
-        )
-        self._thread.start()
+        ).start()
         rospy.on_shutdown(self._wake)
-
-    @property
-    def name(self) -> str:
-        """The resolved topic name."""
-        return str(self._impl.resolved_name)
 
     def get_num_connections(self) -> int:
         """The number of subscribers connected (rospy's)."""

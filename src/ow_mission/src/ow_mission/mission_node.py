@@ -126,8 +126,8 @@ class MissionRunner:
                     state = state if state >= 0.0 else self._last_joint_stamp()
                     self.report.sim_time_s = max(end, state, self._clock)
                     # The report's imports while the stack stops (not during the steps).
-                    draw = (self.config.figures == "inline",)
-                    threading.Thread(target=preload, args=draw, daemon=True).start()
+                    draws = self.config.figures == "inline"
+                    threading.Thread(target=preload, args=(draws,), daemon=True).start()
                     # Stop once the recorder has the last states (a loaded run lost 0.35 s).
                     self.report.recording_note = wait_recorded(state, self._drain, DRAIN_TIMEOUT_S)
                     # The closed split files are read while the stack stops (docs/mission.md).
