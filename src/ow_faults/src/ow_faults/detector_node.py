@@ -14,6 +14,7 @@ from actionlib_msgs.msg import GoalStatusArray
 from ow_faults.detection import FaultDetector, FaultStatus, action_group
 from ow_faults.errors import FaultError
 from ow_faults.listener_node import FaultsListener
+from ow_faults.stream_order import PacingStream
 from ow_lander.actions import ARM_ACTIONS
 from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.init_node import init_node, spin
@@ -31,6 +32,9 @@ from owl_msgs.msg import (
 
 #: The action servers whose goals make goal errors (arm_services and pan_tilt serve them).
 ACTIONS = (*ARM_ACTIONS, "PanTiltMoveJoints", "PanTiltMoveCartesian")
+#: s of wall time an input waits for the lock flags up to its stamp (ow_faults.stream_order).
+PACING_TIMEOUT_S = 5.0
+
 #: (topic, message class, FaultStatus field) of the four outputs.
 OUTPUTS = (
     ("/arm_faults_status", ArmFaultsStatus, "arm"),
@@ -62,6 +66,7 @@ class DetectorNode:
     def __init__(self) -> None:
         self.detector = FaultDetector()
         self._lock = threading.Lock()
+        self._flags = PacingStream()  # the simulation's lock flags pace the other inputs
         self._publishers = [
             (rospy.Publisher(topic, cls, queue_size=10, latch=True), cls, field)
             for topic, cls, field in OUTPUTS
@@ -109,6 +114,7 @@ class DetectorNode:
     def _on_flags(self, msg: JointStatesFlag) -> None:
         stamp = msg.header.stamp
         self._update("on_joint_flags", msg.name, msg.flags, stamp.to_sec(), stamp=stamp)
+        self._flags.taken(stamp.to_sec())
 
     def _on_status(self, action: str, msg: GoalStatusArray) -> None:
         if not msg.status_list or action_group(action) is None:
@@ -125,6 +131,9 @@ class DetectorNode:
         )
 
     def _update(self, rule: str, *args: Any, stamp: Any = None) -> None:
+        paced = stamp is not None and rule != "on_joint_flags"  # the flags up to it first
+        if paced and not self._flags.wait_for(stamp.to_sec(), PACING_TIMEOUT_S):
+            rospy.logwarn(f"detector: no lock flags up to t={stamp.to_sec():.3f} s")
         with self._lock:
             if getattr(self.detector, rule)(*args):
                 self._publish(self.detector.status, rospy.Time.now() if stamp is None else stamp)
