@@ -173,3 +173,49 @@ def test_reset_forgets_the_digs_and_forces(model, tracker):
     tracker.forces.add_contacts([])
     snapshot = tracker.snapshot("scoop", joints, 0.01, track=False)
     assert snapshot.model_wrench is None and np.allclose(snapshot.force, 0.0)
+
+
+def test_a_tool_above_all_terrain_is_tracked_as_with_its_full_kinematics(model, tracker):
+    """Above every part of the terrain the model's step skips the tool's velocities: through a
+    dig that goes in, leaves the ground for good and goes in again, the torques, the model's
+    states and the progress are bit for bit those of the full kinematics."""
+    ground = HeightMap.flat(DEFAULT_GROUND_Z, half_extent=3.0, resolution=0.04)
+    full = ToolTracker(
+        model,
+        ToolForces({"scoop": 10, "grinder": 11}),
+        {"scoop": COM, "grinder": np.zeros(3)},
+        TerrainCarver(ground, SimConfig(), {}, lambda _: FakeSurface()),
+        MATERIAL,
+        frames=[frame.name for frame in model.frames],
+    )
+    full._terrain.above = lambda point: False  # never skips
+    above, below = sample(model, SCOOP_ABOVE_GROUND), sample(model, SCOOP_BELOW_GROUND)
+    models = ConstantModel(), ConstantModel()
+    skipped = 0
+    for k, s in enumerate([*np.linspace(0, 1, 20), *np.linspace(1, 0, 30), *np.linspace(0, 1, 20)]):
+        q = (1 - s) * above.position + s * below.position
+        v = np.full(model.nv, 0.1 * (k % 3 - 1))
+        now = 0.1 * k
+        torques = []
+        for tool_tracker, force_model in zip((tracker, full), models, strict=True):
+            tool_tracker.place(q, v)
+            torques.append(tool_tracker.apply_model(q, now, force_model))
+        if torques[0] is None:
+            assert torques[1] is None
+        else:
+            assert np.array_equal(torques[0], torques[1])
+        for tool in ("scoop", "grinder"):
+            assert tracker._tools[tool].progress == full._tools[tool].progress
+        tip = tracker._data.oMf[model.getFrameId(SCOOP_TIP_FRAME)].translation
+        skipped += bool(tracker._terrain.above(tip))
+    assert len(models[0].states) == len(models[1].states) > 10
+    for a, b in zip(*(m.states for m in models), strict=True):
+        assert (a.tool, a.material, a.depth, a.progress) == (
+            b.tool,
+            b.material,
+            b.depth,
+            b.progress,
+        )
+        assert np.array_equal(a.velocity, b.velocity)
+        assert np.array_equal(a.angular_velocity, b.angular_velocity)
+    assert skipped > 10  # the scoop spent steps above the terrain: the short cut was taken

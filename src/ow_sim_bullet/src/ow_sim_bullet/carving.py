@@ -169,6 +169,11 @@ class TerrainCarver:
         """m, current terrain height at (x, y) in base_link (bilinear in the height map)."""
         return float(self._heightmap.height_at(x, y))
 
+    def above(self, point: FloatArray) -> bool:
+        """Whether ``point`` (m, base_link) is above every part of the terrain: its
+        :meth:`depth` is 0 whatever its velocity."""
+        return bool(point[2] > self._height_bound)
+
     def depth(self, point: FloatArray, velocity: FloatArray) -> tuple[float, float]:
         """(terrain z at a tool tip, depth of the tip below the terrain at and ahead of it), m.
 

@@ -47,6 +47,10 @@ class TerrainDepth(Protocol):
         along ``velocity``), m."""
         ...
 
+    def above(self, point: FloatArray) -> bool:
+        """Whether ``point`` (m) is above every part of the terrain (its depth is 0)."""
+        ...
+
 
 @dataclass
 class _Dig:
@@ -212,6 +216,23 @@ class ToolTracker:
         Returns:
             The tool's state for a terrain-force model when it is dug in, else None.
         """
+        if not self._track_progress(tool, now, tip, depth):
+            return None
+        track = self._tools[tool]
+        rotation_t = np.asarray(X_base_link.rotation).T
+        track.state = ToolState(
+            tool=tool,
+            material=self.material,
+            depth=depth,
+            progress=track.progress,
+            velocity=rotation_t @ tip_velocity,
+            angular_velocity=rotation_t @ angular,
+        )
+        return track.state
+
+    def _track_progress(self, tool: str, now: float, tip: FloatArray, depth: float) -> bool:
+        """The dig progress of :meth:`track_dig` from the tip (m, base_link) and its depth (m);
+        whether the tool is in the ground (when it is not, its state is cleared)."""
         track = self._tools[tool]
         if depth > 0.0:
             track.out_since = None
@@ -223,7 +244,7 @@ class ToolTracker:
             track.progress = 0.0
             track.last_tip = None
             track.state = None
-            return None
+            return False
         # In the ground, or out of it only for a moment (the carving ahead of the tip can zero
         # its depth for a step or two in the middle of a cut): the cut goes on.
         if track.last_tip is not None:
@@ -232,17 +253,8 @@ class ToolTracker:
         track.last_tip = tip
         if depth <= 0.0:
             track.state = None
-            return None
-        rotation_t = np.asarray(X_base_link.rotation).T
-        track.state = ToolState(
-            tool=tool,
-            material=self.material,
-            depth=depth,
-            progress=track.progress,
-            velocity=rotation_t @ tip_velocity,
-            angular_velocity=rotation_t @ angular,
-        )
-        return track.state
+            return False
+        return True
 
     # ------------------------------------------------------------------ forces
     def contact_torque(self, q: FloatArray) -> FloatArray | None:
@@ -290,6 +302,13 @@ class ToolTracker:
         total = None
         for tool in TOOLS:
             track = self._tools[tool]
+            tip = np.array(self._data.oMf[self._frame_id[TOOLS[tool][1]]].translation)
+            if self._terrain.above(tip):
+                # Above every part of the terrain its depth is 0 whatever its velocity: the
+                # velocities (most of the kinematics) are not needed (the grinder, most steps).
+                self._track_progress(tool, now, tip, 0.0)
+                track.model_wrench = None
+                continue
             X_base_link, tip, tip_velocity, _, angular = self._tool_kinematics(tool)
             _, depth = self._terrain.depth(tip, tip_velocity)
             state = self.track_dig(tool, now, X_base_link, tip, tip_velocity, angular, depth)
