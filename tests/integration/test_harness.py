@@ -4,6 +4,7 @@ import os
 import signal
 import socket
 import subprocess
+import xmlrpc.client
 from pathlib import Path
 
 import pytest
@@ -286,6 +287,10 @@ def test_a_master_in_process_serves_other_processes_and_stops(tmp_path):
         try:
             stack.start_node("ow_faults", "faults", wait_for_services=["/faults/set_parameters"])
             assert "/faults/parameter_updates" in master.published_topics()
+            # The harness reads the system state without XML-RPC: the same answer as with it.
+            code, _, over_xmlrpc = xmlrpc.client.ServerProxy(master.uri).getSystemState("/test")
+            assert code == 1
+            assert master.call("getSystemState") == over_xmlrpc
         finally:
             stack.shutdown()
     finally:
