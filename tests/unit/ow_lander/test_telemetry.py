@@ -18,9 +18,9 @@ from ow_lander.telemetry import (
     RateGate,
     Telemetry,
     TelemetryBuilder,
-    TelemetryConfig,
     TelemetryError,
 )
+from ow_lander.telemetry_config import TelemetryConfig
 
 #: docs/owl_msgs.md, spelled out rather than derived.
 OCEANWATERS_ARM_ORDER = (

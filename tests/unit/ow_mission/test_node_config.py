@@ -8,7 +8,7 @@ import pytest
 
 from ow_faults.injection import FaultSet
 from ow_lander.config import ArmServicesConfig
-from ow_lander.telemetry import TelemetryConfig
+from ow_lander.telemetry_config import TelemetryConfig
 from ow_mission.errors import ConfigError
 from ow_mission.node_config import STACK_NODES, merge, shipped_parameters, stack_parameters
 from ow_power.config import (

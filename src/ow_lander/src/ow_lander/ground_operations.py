@@ -34,13 +34,12 @@ from ow_lander.motions import ArmMotions, align, rz
 from ow_lander.operation_plan import OperationPlan, check_finite
 from ow_lander.terrain import HeightMap
 from ow_lander.trajectory import PathSegment, Speed
+from ow_lander.workspace import GRIND_PASS_SHIFT
 
 FloatArray = npt.NDArray[np.float64]
 
 #: m, height above the ground of the tool before it goes down and after it comes up.
 APPROACH_HEIGHT = 0.2
-#: m, lateral distance between the two grinding passes (OceanWATERS: 0.08 m / 0.08 rad).
-GRIND_PASS_SHIFT = 0.08
 #: rad, sweep of the circular dig (OceanWATERS: 2 pi / 3 of the distal pitch).
 CIRCULAR_SWEEP = 2 * math.pi / 3
 #: rad, (shoulder pitch, prox, dist, hand, scoop) of the reference configurations, aimed by the

@@ -28,43 +28,15 @@ from ow_lander.errors import PlanningError
 from ow_lander.planning import ArmPlanner
 from ow_lander.terrain import HeightMap
 from ow_lander.validity import CheckContext, densify
+from ow_lander.workspace import shoulder_yaw_for
 
 FloatArray = npt.NDArray[np.float64]
 
-#: m, shoulder yaw axis in base_link (OceanWATERS X_SHOU, Y_SHOU).
-SHOULDER_XY = (0.79, 0.175)
-#: m, lateral offset of the arm's working plane from the shoulder axis (Y_SHOU - HAND_Y_OFFSET).
-ARM_PLANE_OFFSET = 0.15
 #: m, clearance above the terrain a tool is lifted to when an operation starts in contact.
 LIFT_OFF_CLEARANCE = 0.10
 #: m, a tool closer than this to the terrain at the start of an operation is lifted off first
 #: (it may sit in a dent it made, whose walls the next motion would scrape).
 CONTACT_CLEARANCE = 0.02
-
-
-def shoulder_yaw_for(x: float, y: float, lower: float, upper: float) -> float:
-    """rad, shoulder yaw aiming the arm's working plane at (x, y) (OceanWATERS alpha + beta).
-
-    Raises:
-        PlanningError: the point is inside the shoulder's offset circle or the yaw is outside
-            [lower, upper].
-    """
-    dx, dy = x - SHOULDER_XY[0], y - SHOULDER_XY[1]
-    h = math.hypot(dx, dy)
-    if h <= ARM_PLANE_OFFSET:
-        msg = (
-            f"(x, y)=({x:.3f}, {y:.3f}) m is {h:.3f} m from the shoulder axis, closer than the "
-            f"arm plane offset {ARM_PLANE_OFFSET} m"
-        )
-        raise PlanningError(msg)
-    yaw = math.atan2(dy, dx) + math.asin(ARM_PLANE_OFFSET / h)
-    if not lower <= yaw <= upper:
-        msg = (
-            f"(x, y)=({x:.3f}, {y:.3f}) m needs shoulder yaw {yaw:.3f} rad, outside the joint "
-            f"limits [{lower:.2f}, {upper:.2f}] rad"
-        )
-        raise PlanningError(msg)
-    return yaw
 
 
 def rz(angle: float) -> FloatArray:

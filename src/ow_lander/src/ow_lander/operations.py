@@ -22,12 +22,13 @@ import numpy.typing as npt
 from ow_lander import ground_operations
 from ow_lander.description import ARM_JOINTS, SCOOP_LINK, SCOOP_TIP_FRAME, STOWED, UNSTOWED
 from ow_lander.errors import PlanningError
-from ow_lander.motions import SHOULDER_XY, ArmMotions, ry, shoulder_yaw_for
+from ow_lander.motions import ArmMotions, ry
 from ow_lander.operation_plan import OperationPlan, check_finite
 from ow_lander.planning import ArmPlanner
 from ow_lander.terrain import HeightMap
 from ow_lander.trajectory import PathSegment
 from ow_lander.validity import CheckContext
+from ow_lander.workspace import SHOULDER_XY, shoulder_yaw_for
 
 __all__ = [
     "DOCK_CENTRE",

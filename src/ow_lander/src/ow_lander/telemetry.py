@@ -15,19 +15,16 @@ names to these orders are built once per distinct name list and reused.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
 from ow_lander.description import ANTENNA_JOINTS, ARM_JOINTS, GRINDER_JOINT, SCOOP_LINK
-from ow_lander.errors import ConfigError, OwLanderError
+from ow_lander.errors import OwLanderError
 from ow_lander.model import LanderModel
-from ow_lander.params import Params
 
 FloatArray = npt.NDArray[np.float64]
 IndexArray = npt.NDArray[np.intp]
@@ -39,33 +36,6 @@ TELEMETRY_ARM_JOINTS: tuple[str, ...] = tuple(sorted((*ARM_JOINTS, GRINDER_JOINT
 PAN_TILT_JOINTS: tuple[str, ...] = ANTENNA_JOINTS
 #: The frame of ArmPose: its pose is that of :data:`~ow_lander.description.SCOOP_LINK` in it.
 ARM_POSE_FRAME = "base_link"
-#: The telemetry node's parameter file; its ``telemetry:`` section is the node's ``~``.
-CONFIG_FILE = Path(__file__).resolve().parents[2] / "config" / "telemetry.yaml"
-
-
-@dataclass(frozen=True)
-class TelemetryConfig:
-    """Parameters of the telemetry node (private namespace ``~``).
-
-    Attributes:
-        rate_hz: Hz of simulation time at which the telemetry is published: the first joint
-            state at or after each multiple of 1 / rate_hz; 0 = one message of each topic per
-            joint state, as OceanWATERS.
-    """
-
-    rate_hz: float = 0.0
-
-    @classmethod
-    def from_dict(cls, params: Mapping[str, Any]) -> TelemetryConfig:
-        """Validate the node's parameters (missing keys take their defaults).
-
-        Raises:
-            ConfigError: unknown keys or a negative or non-finite rate, named.
-        """
-        p = Params(params, "telemetry", ConfigError)
-        config = cls(rate_hz=p.non_negative("rate_hz", cls.rate_hz, "Hz"))
-        p.finish()
-        return config
 
 
 class RateGate:

@@ -18,9 +18,9 @@ from ow_lander.telemetry import (
     ARM_POSE_FRAME,
     RateGate,
     TelemetryBuilder,
-    TelemetryConfig,
     TelemetryError,
 )
+from ow_lander.telemetry_config import TelemetryConfig
 from owl_msgs.msg import (
     ArmJointAccelerations,
     ArmJointPositions,
@@ -62,7 +62,8 @@ class TelemetryNode:
             frame_id base_link.
 
     Parameters: ``~rate_hz`` (Hz of sim time, 0 = every joint state; config/telemetry.yaml,
-    :class:`~ow_lander.telemetry.TelemetryConfig`). No clock (it does not subscribe to /clock).
+    :class:`~ow_lander.telemetry_config.TelemetryConfig`). No clock (it does not subscribe to
+    /clock).
     At shutdown the node logs the process CPU time it used per joint state.
     """
 

@@ -35,7 +35,7 @@ from ow_lander import errors as lander_errors
 from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.description import URDF_PATH
 from ow_lander.init_node import init_node, spin
-from ow_lander.telemetry import TelemetryConfig
+from ow_lander.telemetry_config import TelemetryConfig
 from ow_lander.telemetry_node import TelemetryNode
 from ow_mission.errors import ConfigError
 from ow_mission.node_config import SERVE_FAULTS

@@ -31,7 +31,7 @@ import yaml
 
 from ow_faults.injection import PROFILE_DIR as FAULTS_CONFIG_DIR
 from ow_lander.config import CONFIG_FILE as ARM_SERVICES_YAML
-from ow_lander.telemetry import CONFIG_FILE as TELEMETRY_YAML
+from ow_lander.telemetry_config import CONFIG_FILE as TELEMETRY_YAML
 from ow_mission.errors import ConfigError
 from ow_power.config import CONFIG_FILE as POWER_YAML
 from ow_sim_bullet.config import PID_YAML, SIM_YAML

@@ -18,9 +18,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ow_lander.ground_detection import GroundDetector
-from ow_lander.ground_operations import GRIND_PASS_SHIFT
-from ow_lander.motions import shoulder_yaw_for
 from ow_lander.terrain import HeightMap
+from ow_lander.workspace import GRIND_PASS_SHIFT, shoulder_yaw_for
 from ow_mission.recording import Recording
 
 FloatArray = npt.NDArray[np.float64]
