@@ -1,0 +1,173 @@
+"""Cost of one physics step of the simulation without ROS: the core (physics, controller, contacts,
+carving) and its outputs (every message built and serialised as the node does, then dropped).
+
+Drives ``BulletSim`` and ``SimOutputs`` of the simulation node's configuration (``sim.yaml``,
+``pid.yaml``) on flat ground at the stowed pose's height, (a) holding the stowed pose and (b) in
+the sweep ``bench/sim_speed.py`` digs (the scoop pushed in and dragged sideways through fresh
+terrain), with no terrain-force model and (c) with the DEM tables the mission uses. One JSON line
+per metric: us a step of the core alone, of the core with its outputs, and of Bullet's
+``stepSimulation`` within them; the real-time factor they allow. Where ``bench/sim_speed.py``
+adds the node's ROS (sockets, threads) and the machine's other processes, this isolates the
+simulation's own code (docs/performance.md, twelfth round).
+
+    source env.sh && python bench/sim_core.py
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from typing import Any
+
+import pybullet as pb
+import yaml
+
+from ow_lander.description import SCOOP_ABOVE_GROUND, SCOOP_BELOW_GROUND, URDF_PATH
+from ow_sim_bullet import conversions, sim_core
+from ow_sim_bullet.config import PID_YAML, SIM_YAML, SimConfig
+from ow_sim_bullet.outputs import WIRE_TOPICS, SimOutputs
+from ow_sim_bullet.sim_core import BulletSim, make_force_model
+from ow_sim_bullet.terrains import parse_terrain_spec
+from ow_sim_bullet.trajectory import JointTrajectory
+
+#: physics steps measured per case (60 s of sim time at 100 Hz), after the warm-up.
+STEPS = 6000
+#: steps before the measurement: the arm settles (hold), or reaches the sweep (dig).
+HOLD_WARMUP = 500
+DIG_WARMUP = 1800
+
+
+class _Serialising:
+    """A wire publisher that builds every payload, as the node's, and drops it."""
+
+    def __init__(self) -> None:
+        self.seq = 0
+
+    def publish(self, serialize: Callable[..., bytes], *args: Any) -> None:
+        self.seq += 1
+        serialize(self.seq, *args)
+
+    def flush(self, only: Any = None) -> None:
+        """Nothing queued."""
+
+
+class _Dropping:
+    """The terrain's publisher (genpy messages): the message is built by SimOutputs, dropped."""
+
+    def publish(self, msg: Any) -> None:
+        """Dropped."""
+
+
+class _TimedStep:
+    """pybullet's ``stepSimulation`` as the simulation calls it, timed."""
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+        self._step = pb.stepSimulation
+
+    def __call__(self, **kwargs: Any) -> None:
+        start = time.perf_counter()
+        self._step(**kwargs)
+        self.seconds += time.perf_counter() - start
+
+
+def _simulation(forces: str) -> tuple[BulletSim, SimOutputs]:
+    raw = {**yaml.safe_load(SIM_YAML.read_text()), **yaml.safe_load(PID_YAML.read_text())}
+    raw.update(terrain="flat:-0.155", terrain_forces=forces)
+    config = SimConfig.from_dict(raw)
+    model = make_force_model(config.terrain_forces, config.terrain_force_params)
+    sim = BulletSim(config, parse_terrain_spec(config.terrain), model)
+    publishers = {topic: _Serialising() for topic, _ in WIRE_TOPICS}
+    frames = conversions.joint_frames(URDF_PATH.read_text())
+    return sim, SimOutputs(sim, config, publishers, _Dropping(), frames)
+
+
+def _sweep(sim: BulletSim) -> JointTrajectory:
+    """bench/sim_speed.py's: above the ground, into it, then 65 s sideways through it."""
+    joints = list(SCOOP_ABOVE_GROUND)
+    points = [
+        (10.0, {**SCOOP_ABOVE_GROUND, "j_shou_yaw": -0.3}),
+        (15.0, {**SCOOP_BELOW_GROUND, "j_shou_yaw": -0.3}),
+        (80.0, {**SCOOP_BELOW_GROUND, "j_shou_yaw": 0.35}),
+    ]
+    start = [sim.position(j) for j in joints]
+    return JointTrajectory.build(
+        joints,
+        sim.time,
+        [0.0, *(t for t, _ in points)],
+        [start, *([pose[j] for j in joints] for _, pose in points)],
+        None,
+        sim.names,
+    )
+
+
+def _measure(case: str, forces: str) -> dict[str, float]:
+    """us a step of the core, of the core with its outputs, and of stepSimulation in each."""
+    result: dict[str, float] = {}
+    for outputs_on in (False, True):
+        sim, outputs = _simulation(forces)
+        timed = _TimedStep()
+        sim_core.pb.stepSimulation = timed  # type: ignore[attr-defined]
+        try:
+            warmup = HOLD_WARMUP
+            if case == "dig":
+                for _ in range(HOLD_WARMUP):
+                    sim.step()
+                sim.set_trajectory(_sweep(sim))
+                warmup = DIG_WARMUP
+            for _ in range(warmup):
+                sim.step()
+                if outputs_on:
+                    outputs.after_step()
+            timed.seconds = 0.0
+            start = time.perf_counter()
+            for _ in range(STEPS):
+                sim.step()
+                if outputs_on:
+                    outputs.after_step()
+            elapsed = time.perf_counter() - start
+        finally:
+            sim_core.pb.stepSimulation = timed._step  # type: ignore[attr-defined]
+            sim.close()
+        kind = "outputs" if outputs_on else "core"
+        result[f"{kind}_us"] = elapsed / STEPS * 1e6
+        result[f"{kind}_step_simulation_us"] = timed.seconds / STEPS * 1e6
+        result[f"{kind}_rtf"] = STEPS * sim.dt / elapsed
+    return result
+
+
+def line(metric: str, value: float, unit: str, **extra: object) -> None:
+    print(
+        json.dumps(
+            {"bench": "sim_core", "metric": metric, "value": round(value, 1), "unit": unit, **extra}
+        ),
+        flush=True,
+    )
+
+
+def main() -> None:
+    for case, forces, label in (
+        ("hold", "none", "holding"),
+        ("dig", "none", "digging"),
+        ("dig", "table", "digging_dem_table"),
+    ):
+        r = _measure(case, forces)
+        line(f"core_us_per_step_{label}", r["core_us"], "us", rtf=round(r["core_rtf"], 1))
+        line(
+            f"core_step_simulation_us_{label}",
+            r["core_step_simulation_us"],
+            "us",
+            note="pybullet stepSimulation, within the core's",
+        )
+        line(
+            f"core_outputs_us_per_step_{label}",
+            r["outputs_us"],
+            "us",
+            rtf=round(r["outputs_rtf"], 1),
+            note="core and every output serialised, no ROS",
+        )
+
+
+if __name__ == "__main__":
+    main()
