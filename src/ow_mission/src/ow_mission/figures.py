@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any, TypeAlias
 
 from ow_mission.errors import FiguresError
+from ow_mission.stack import NODE_ENVIRONMENT
 
 #: The figures' process output, in the run directory.
 FIGURES_LOG = "figures.log"
@@ -62,8 +63,7 @@ def start_figures(run_dir: Path, renders: bool) -> FiguresProcess:
             stdout=log,
             stderr=subprocess.STDOUT,
             start_new_session=True,
-            # As the nodes (ow_mission.stack.NODE_ENVIRONMENT; not imported: a process' worth).
-            env={"OPENBLAS_NUM_THREADS": "1", "MALLOC_ARENA_MAX": "1", **os.environ},
+            env={**NODE_ENVIRONMENT, **os.environ},  # as the nodes; a user's setting wins
         )
     (run_dir / PID_FILE).write_text(f"{proc.pid}\n")
     return proc
