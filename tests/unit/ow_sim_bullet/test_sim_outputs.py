@@ -4,6 +4,7 @@ publishing into recorders that decode what would go on the wire."""
 from __future__ import annotations
 
 import dataclasses
+import sys
 import threading
 import time
 
@@ -270,6 +271,51 @@ def test_a_terrain_changed_within_the_throttle_goes_out_where_the_simulation_sto
         assert runner.lockstep_status()[5] == pytest.approx(
             made.terrain.messages[-1].header.stamp.to_sec(), abs=1e-9
         )
+    finally:
+        runner.stop()
+        thread.join(timeout=5.0)
+        made.sim.close()
+
+
+class _PausingLock(threading.Condition):
+    """A runner's lock that, once armed, pauses the runner as its loop next takes the lock to
+    wait for commands: after the loop looked at the pause, before it waits (the order a loaded
+    machine once gave a pause from another thread, in CI)."""
+
+    def __init__(self, runner: SimRunner) -> None:
+        super().__init__(threading.Lock())
+        self.runner = runner
+        self.armed = False
+
+    def __enter__(self) -> bool:
+        if self.armed and sys._getframe(1).f_code.co_name == "run":
+            self.armed = False
+            self.runner.pause()  # takes this lock too, disarmed
+        return super().__enter__()
+
+
+def test_a_pause_between_the_loops_look_and_its_wait_is_stood_at():
+    """Whenever a pause comes, the simulation stands before it waits: what it stands at (a
+    terrain changed within the throttle, /clock at its time) goes out, not at the next command."""
+    made = Setup(dataclasses.replace(SimConfig(), terrain_publish_period=3600.0))
+    runner = SimRunner(made.sim, made.outputs, 0.0, True, lambda: False)
+    lock = runner._wake = _PausingLock(runner)
+    thread = threading.Thread(target=runner.run, daemon=True)
+    thread.start()
+    try:
+        runner.resume()
+        while runner.call(lambda: made.sim.steps) < 5:
+            pass
+        runner.call(lambda: made.sim.set_terrain(flat(DEFAULT_GROUND_Z - 0.1)))
+        assert len(made.terrain.messages) == 1  # the first; the change is within the hour
+        lock.armed = True
+        assert _eventually(lambda: not lock.armed)  # paused by the loop's own thread
+        assert _eventually(lambda: len(made.terrain.messages) == 2)
+        stands_at = made.sim.time  # the runner is paused: it steps no more
+        assert made.terrain.messages[-1].heights[0] == pytest.approx(DEFAULT_GROUND_Z - 0.1)
+        assert made.terrain.messages[-1].header.stamp.to_sec() == pytest.approx(stands_at)
+        clock = made.recorders["/clock"].messages()[-1].clock.to_sec()
+        assert clock == pytest.approx(stands_at)
     finally:
         runner.stop()
         thread.join(timeout=5.0)

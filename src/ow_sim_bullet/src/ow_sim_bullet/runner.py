@@ -301,6 +301,10 @@ class SimRunner:
                 self._stand()
             with self._wake:
                 while not self._shutdown and not self._queue and self._paused:
+                    if self._started and self._stood_at != sim.time:
+                        # Paused since the check above: it stands with what it stands at not
+                        # yet out, which goes out before any wait (below).
+                        break
                     self._wake.wait(timeout=_POLL_S)
                     outputs.publish_terrain_if_due()
                 if self._shutdown:
