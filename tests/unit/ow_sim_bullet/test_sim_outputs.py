@@ -3,10 +3,12 @@ publishing into recorders that decode what would go on the wire."""
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import sys
 import threading
 import time
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -204,48 +206,59 @@ def _eventually(condition, timeout_s: float = 30.0) -> bool:
     return True
 
 
-def test_a_slow_clock_still_reaches_where_the_simulation_stops():
-    """/clock at 10 Hz: between ticks it lags, but after ``~step``, on a pause and at a lockstep
-    hold it is written at the time the simulation stands at (nodes' clocks reach it)."""
-    made = Setup(dataclasses.replace(SimConfig(), clock_rate_hz=10.0, terrain_publish_period=0.0))
+@contextlib.contextmanager
+def _threaded(config: SimConfig, lock: Callable[[SimRunner], threading.Condition] | None = None):
+    """A simulation recorded as in :class:`Setup`, on a runner thread of its own (started
+    paused, as fast as possible), with the runner's lock made by ``lock``; stopped after."""
+    made = Setup(config)
     runner = SimRunner(made.sim, made.outputs, 0.0, True, lambda: False)
+    if lock is not None:
+        runner._wake = lock(runner)
     thread = threading.Thread(target=runner.run, daemon=True)
     thread.start()
-
-    def last_clock() -> float:
-        return runner.call(lambda: made.recorders["/clock"].messages()[-1].clock.to_sec())
-
     try:
-        assert runner.step_paused(13) == pytest.approx(0.13)
-        ticks = [m.clock.to_sec() for m in made.recorders["/clock"].messages()]
-        assert ticks == pytest.approx([0.01, 0.1, 0.13])  # the 10 Hz ticks, then where it stopped
-        runner.resume()
-        while runner.call(lambda: made.sim.steps) < 27:
-            pass
-        runner.pause()
-        assert _eventually(lambda: last_clock() == pytest.approx(made.sim.time))
-        runner.lockstep_register("arm", enable=True, hold=True)
-        runner.lockstep_ack("arm", made.sim.time, made.sim.time + 0.04, [])
-        held = runner.step_paused(50)
-        assert held == pytest.approx(made.sim.time) and last_clock() == pytest.approx(held)
+        yield made, runner
     finally:
         runner.stop()
         thread.join(timeout=5.0)
         made.sim.close()
 
 
+def _run_to_step(made: Setup, runner: SimRunner, steps: int) -> None:
+    """Resume the runner and return once the simulation took ``steps`` steps (it runs on)."""
+    runner.resume()
+    while runner.call(lambda: made.sim.steps) < steps:
+        pass
+
+
+def test_a_slow_clock_still_reaches_where_the_simulation_stops():
+    """/clock at 10 Hz: between ticks it lags, but after ``~step``, on a pause and at a lockstep
+    hold it is written at the time the simulation stands at (nodes' clocks reach it)."""
+    config = dataclasses.replace(SimConfig(), clock_rate_hz=10.0, terrain_publish_period=0.0)
+    with _threaded(config) as (made, runner):
+
+        def last_clock() -> float:
+            return runner.call(lambda: made.recorders["/clock"].messages()[-1].clock.to_sec())
+
+        assert runner.step_paused(13) == pytest.approx(0.13)
+        ticks = [m.clock.to_sec() for m in made.recorders["/clock"].messages()]
+        assert ticks == pytest.approx([0.01, 0.1, 0.13])  # the 10 Hz ticks, then where it stopped
+        _run_to_step(made, runner, 27)
+        runner.pause()
+        assert _eventually(lambda: last_clock() == pytest.approx(made.sim.time))
+        runner.lockstep_register("arm", enable=True, hold=True)
+        runner.lockstep_ack("arm", made.sim.time, made.sim.time + 0.04, [])
+        held = runner.step_paused(50)
+        assert held == pytest.approx(made.sim.time) and last_clock() == pytest.approx(held)
+
+
 def test_a_terrain_changed_within_the_throttle_goes_out_where_the_simulation_stops():
     """The terrain is republished at most every ``terrain_publish_period`` s of simulation time
     while the simulation runs, but the one it stands on when paused or held goes out at once:
     the last terrain of a run is recorded however soon the run ends."""
-    made = Setup(dataclasses.replace(SimConfig(), terrain_publish_period=3600.0))
-    runner = SimRunner(made.sim, made.outputs, 0.0, True, lambda: False)
-    thread = threading.Thread(target=runner.run, daemon=True)
-    thread.start()
-    try:
-        runner.resume()
-        while runner.call(lambda: made.sim.steps) < 5:
-            pass
+    config = dataclasses.replace(SimConfig(), terrain_publish_period=3600.0)
+    with _threaded(config) as (made, runner):
+        _run_to_step(made, runner, 5)
         published = len(made.terrain.messages)  # the first, on the first step
         runner.call(lambda: made.sim.set_terrain(flat(DEFAULT_GROUND_Z - 0.1)))
         while runner.call(lambda: made.sim.steps) < 10:
@@ -271,10 +284,6 @@ def test_a_terrain_changed_within_the_throttle_goes_out_where_the_simulation_sto
         assert runner.lockstep_status()[5] == pytest.approx(
             made.terrain.messages[-1].header.stamp.to_sec(), abs=1e-9
         )
-    finally:
-        runner.stop()
-        thread.join(timeout=5.0)
-        made.sim.close()
 
 
 class _PausingLock(threading.Condition):
@@ -297,17 +306,12 @@ class _PausingLock(threading.Condition):
 def test_a_pause_between_the_loops_look_and_its_wait_is_stood_at():
     """Whenever a pause comes, the simulation stands before it waits: what it stands at (a
     terrain changed within the throttle, /clock at its time) goes out, not at the next command."""
-    made = Setup(dataclasses.replace(SimConfig(), terrain_publish_period=3600.0))
-    runner = SimRunner(made.sim, made.outputs, 0.0, True, lambda: False)
-    lock = runner._wake = _PausingLock(runner)
-    thread = threading.Thread(target=runner.run, daemon=True)
-    thread.start()
-    try:
-        runner.resume()
-        while runner.call(lambda: made.sim.steps) < 5:
-            pass
+    config = dataclasses.replace(SimConfig(), terrain_publish_period=3600.0)
+    with _threaded(config, _PausingLock) as (made, runner):
+        _run_to_step(made, runner, 5)
         runner.call(lambda: made.sim.set_terrain(flat(DEFAULT_GROUND_Z - 0.1)))
         assert len(made.terrain.messages) == 1  # the first; the change is within the hour
+        lock = runner._wake
         lock.armed = True
         assert _eventually(lambda: not lock.armed)  # paused by the loop's own thread
         assert _eventually(lambda: len(made.terrain.messages) == 2)
@@ -316,10 +320,6 @@ def test_a_pause_between_the_loops_look_and_its_wait_is_stood_at():
         assert made.terrain.messages[-1].header.stamp.to_sec() == pytest.approx(stands_at)
         clock = made.recorders["/clock"].messages()[-1].clock.to_sec()
         assert clock == pytest.approx(stands_at)
-    finally:
-        runner.stop()
-        thread.join(timeout=5.0)
-        made.sim.close()
 
 
 def _carved_terrain_stamps(slow_steps: bool) -> list[float]:
