@@ -5,16 +5,18 @@ Drives ``BulletSim`` and ``SimOutputs`` of the simulation node's configuration (
 ``pid.yaml``) on flat ground at the stowed pose's height, (a) holding the stowed pose and (b) in
 the sweep ``bench/sim_speed.py`` digs (the scoop pushed in and dragged sideways through fresh
 terrain), with no terrain-force model and (c) with the DEM tables the mission uses. One JSON line
-per metric: us a step of the core alone, of the core with its outputs, and of Bullet's
-``stepSimulation`` within them; the real-time factor they allow. Where ``bench/sim_speed.py``
-adds the node's ROS (sockets, threads) and the machine's other processes, this isolates the
-simulation's own code (docs/performance.md, twelfth round).
+per metric: us a step of the core alone, of the core with its outputs, of Bullet's
+``stepSimulation`` within them and of every pybullet call within them (the part no change of our
+Python can remove: the rest is our Python); the real-time factor they allow. Where
+``bench/sim_speed.py`` adds the node's ROS (sockets, threads) and the machine's other processes,
+this isolates the simulation's own code (docs/performance.md, twelfth and thirteenth rounds).
 
     source env.sh && python bench/sim_core.py
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import time
 from collections.abc import Callable
@@ -24,7 +26,7 @@ import pybullet as pb
 import yaml
 
 from ow_lander.description import SCOOP_ABOVE_GROUND, SCOOP_BELOW_GROUND, URDF_PATH
-from ow_sim_bullet import conversions, sim_core
+from ow_sim_bullet import conversions
 from ow_sim_bullet.config import PID_YAML, SIM_YAML, SimConfig
 from ow_sim_bullet.outputs import WIRE_TOPICS, SimOutputs
 from ow_sim_bullet.sim_core import BulletSim, make_force_model
@@ -59,17 +61,41 @@ class _Dropping:
         """Dropped."""
 
 
-class _TimedStep:
-    """pybullet's ``stepSimulation`` as the simulation calls it, timed."""
+class _TimedPybullet:
+    """Every function of the pybullet module, timed while installed (``stepSimulation`` apart)."""
 
     def __init__(self) -> None:
+        self.step_seconds = 0.0
         self.seconds = 0.0
-        self._step = pb.stepSimulation
+        self._originals = {
+            name: getattr(pb, name)
+            for name in dir(pb)
+            if not name.startswith("_") and callable(getattr(pb, name))
+        }
 
-    def __call__(self, **kwargs: Any) -> None:
-        start = time.perf_counter()
-        self._step(**kwargs)
-        self.seconds += time.perf_counter() - start
+    def _timed(self, name: str, function: Callable[..., Any]) -> Callable[..., Any]:
+        def call(*args: Any, **kwargs: Any) -> Any:
+            start = time.perf_counter()
+            result = function(*args, **kwargs)
+            elapsed = time.perf_counter() - start
+            self.seconds += elapsed
+            if name == "stepSimulation":
+                self.step_seconds += elapsed
+            return result
+
+        return call
+
+    def __enter__(self) -> _TimedPybullet:
+        """Install the timed functions; the clocks start at 0."""
+        self.seconds = self.step_seconds = 0.0
+        for name, function in self._originals.items():
+            setattr(pb, name, self._timed(name, function))
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        """Put pybullet's own functions back."""
+        for name, function in self._originals.items():
+            setattr(pb, name, function)
 
 
 def _simulation(forces: str) -> tuple[BulletSim, SimOutputs]:
@@ -102,38 +128,49 @@ def _sweep(sim: BulletSim) -> JointTrajectory:
     )
 
 
-def _measure(case: str, forces: str) -> dict[str, float]:
-    """us a step of the core, of the core with its outputs, and of stepSimulation in each."""
-    result: dict[str, float] = {}
-    for outputs_on in (False, True):
-        sim, outputs = _simulation(forces)
-        timed = _TimedStep()
-        sim_core.pb.stepSimulation = timed  # type: ignore[attr-defined]
-        try:
-            warmup = HOLD_WARMUP
-            if case == "dig":
-                for _ in range(HOLD_WARMUP):
-                    sim.step()
-                sim.set_trajectory(_sweep(sim))
-                warmup = DIG_WARMUP
-            for _ in range(warmup):
+def _run(
+    case: str, forces: str, outputs_on: bool, timed: _TimedPybullet | None
+) -> tuple[float, float]:
+    """s of wall time of :data:`STEPS` steps after the case's warm-up, and the step (s); with
+    ``timed``, their pybullet calls are timed (the wrappers cost ~10 %: the total is measured
+    without them)."""
+    sim, outputs = _simulation(forces)
+    try:
+        warmup = HOLD_WARMUP
+        if case == "dig":
+            for _ in range(HOLD_WARMUP):
                 sim.step()
-                if outputs_on:
-                    outputs.after_step()
-            timed.seconds = 0.0
+            sim.set_trajectory(_sweep(sim))
+            warmup = DIG_WARMUP
+        for _ in range(warmup):
+            sim.step()
+            if outputs_on:
+                outputs.after_step()
+        with timed if timed is not None else contextlib.nullcontext():
             start = time.perf_counter()
             for _ in range(STEPS):
                 sim.step()
                 if outputs_on:
                     outputs.after_step()
             elapsed = time.perf_counter() - start
-        finally:
-            sim_core.pb.stepSimulation = timed._step  # type: ignore[attr-defined]
-            sim.close()
+        return elapsed, sim.dt
+    finally:
+        sim.close()
+
+
+def _measure(case: str, forces: str) -> dict[str, float]:
+    """us a step of the core and of the core with its outputs; of stepSimulation and of every
+    pybullet call within each (from a second, instrumented run)."""
+    result: dict[str, float] = {}
+    for outputs_on in (False, True):
         kind = "outputs" if outputs_on else "core"
+        elapsed, dt = _run(case, forces, outputs_on, None)
+        timed = _TimedPybullet()
+        _run(case, forces, outputs_on, timed)
         result[f"{kind}_us"] = elapsed / STEPS * 1e6
-        result[f"{kind}_step_simulation_us"] = timed.seconds / STEPS * 1e6
-        result[f"{kind}_rtf"] = STEPS * sim.dt / elapsed
+        result[f"{kind}_rtf"] = STEPS * dt / elapsed
+        result[f"{kind}_step_simulation_us"] = timed.step_seconds / STEPS * 1e6
+        result[f"{kind}_pybullet_us"] = timed.seconds / STEPS * 1e6
     return result
 
 
@@ -161,11 +198,23 @@ def main() -> None:
             note="pybullet stepSimulation, within the core's",
         )
         line(
+            f"core_pybullet_us_{label}",
+            r["core_pybullet_us"],
+            "us",
+            note="every pybullet call within the core's (the rest is our Python)",
+        )
+        line(
             f"core_outputs_us_per_step_{label}",
             r["outputs_us"],
             "us",
             rtf=round(r["outputs_rtf"], 1),
             note="core and every output serialised, no ROS",
+        )
+        line(
+            f"core_outputs_pybullet_us_{label}",
+            r["outputs_pybullet_us"],
+            "us",
+            note="every pybullet call within the core's with outputs",
         )
 
 
