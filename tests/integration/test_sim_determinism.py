@@ -7,6 +7,7 @@ import time
 import numpy as np
 import rospy
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ow_mission.testing import advertise, subscribe, wait_connected
@@ -29,20 +30,29 @@ def run_once(ros_stack) -> np.ndarray:
         JointState,
         lambda m: rows.append([m.header.stamp.to_sec(), *m.position, *m.velocity, *m.effort]),
     )
+    receipts: list[Header] = []
+    receipt_sub = subscribe("/sim/trajectory_received", Header, receipts.append)
     commands = advertise("/sim/joint_trajectory", JointTrajectory, queue_size=1)
     try:
         deadline = time.monotonic() + 10.0
         while commands.get_num_connections() == 0 and time.monotonic() < deadline:
             time.sleep(0.02)
         wait_connected(sub)  # the simulation writes to it: none of its states is lost
+        wait_connected(receipt_sub)
         msg = JointTrajectory(joint_names=list(TARGET))
+        msg.header.frame_id = "determinism"
         msg.points = [
             JointTrajectoryPoint(
                 positions=list(TARGET.values()), time_from_start=rospy.Duration.from_sec(4.0)
             )
         ]
         commands.publish(msg)
-        time.sleep(0.5)  # delivered while the simulation is paused at t = 0
+        # Queued while the simulation is paused at t = 0, before the first step.
+        deadline = time.monotonic() + 10.0
+        while not receipts and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert [r.frame_id for r in receipts] == ["determinism"]
+        assert receipts[0].stamp.to_sec() == 0.0
         response = ros_stack.service("/sim/step", StepSimulation)(600)
         assert response.success, response.message
         deadline = time.monotonic() + 10.0
@@ -52,6 +62,7 @@ def run_once(ros_stack) -> np.ndarray:
             time.sleep(0.02)
     finally:
         sub.unregister()
+        receipt_sub.unregister()
         commands.unregister()
         node.stop()
     return np.array(rows)

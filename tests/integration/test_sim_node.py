@@ -14,7 +14,7 @@ import tf2_ros
 from geometry_msgs.msg import PointStamped, WrenchStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64
+from std_msgs.msg import Float64, Header
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -25,7 +25,7 @@ from ow_lander.description import (
     SCOOP_BELOW_GROUND,
     URDF_PATH,
 )
-from ow_mission.testing import FLAT, advertise, subscribe
+from ow_mission.testing import FLAT, advertise, subscribe, wait_connected
 from ow_msgs.msg import HeightMap
 from ow_msgs.srv import SetPidGains, SetTerrain, StepSimulation
 
@@ -76,16 +76,26 @@ class Sim:
         self.tip_ground = Recorder("/sim/scoop_tip_ground", PointStamped)
         self.terrain = Recorder("/sim/terrain", HeightMap)
         self.clock = Recorder("/clock", Clock)
+        self.receipts = Recorder("/sim/trajectory_received", Header)
+        self._trajectories_sent = 0
         self.trajectory_pub = advertise("/sim/joint_trajectory", JointTrajectory, queue_size=10)
         self.setpoint_pubs: dict[str, rospy.Publisher] = {}
 
     def steps(self, n: int) -> float:
+        """Step ``n`` times; return the sim time (s) once every recorded output of those steps
+        has arrived: each topic comes on a connection of its own, and under load one lags the
+        others (the scoop's tip over the ground was once still on its way after the clock and
+        the joint states had come)."""
         response = self.step_srv(n)
         assert response.success, response.message
-        self.clock.wait_for(lambda m: m.clock.to_sec() >= response.sim_time - 1e-6)
+        end = response.sim_time
+        self.clock.wait_for(lambda m: m.clock.to_sec() >= end - 1e-6)
         if n > 1:  # the last joint state is stamped one step before the clock
-            self.joints.wait_for(lambda m: m.header.stamp.to_sec() >= response.sim_time - 0.0105)
-        return response.sim_time
+            self.joints.wait_for(lambda m: m.header.stamp.to_sec() >= end - 0.0105)
+        if n > 2:  # 50 Hz, stamped as the joint states: one within the last three steps
+            for recorder in (self.wrench, self.tip_ground):
+                recorder.wait_for(lambda m: m.header.stamp.to_sec() >= end - 0.0305)
+        return end
 
     def publish(self, publisher: rospy.Publisher, msg) -> None:
         deadline = time.monotonic() + 10.0
@@ -101,8 +111,13 @@ class Sim:
             )
         self.publish(self.setpoint_pubs[controller], Float64(value))
 
-    def trajectory(self, points: list[tuple[float, dict[str, float]]]) -> None:
+    def trajectory(self, points: list[tuple[float, dict[str, float]]]) -> bool:
+        """Send a trajectory and wait until the paused simulation has queued or refused it
+        (``~trajectory_received``); whether it queued it."""
+        self._trajectories_sent += 1
+        token = f"test_sim_node {self._trajectories_sent}"
         msg = JointTrajectory()
+        msg.header.frame_id = token
         msg.joint_names = list(points[0][1])
         for t, pose in points:
             msg.points.append(
@@ -111,7 +126,10 @@ class Sim:
                     time_from_start=rospy.Duration.from_sec(t),
                 )
             )
-        self.publish(self.trajectory_pub, msg)
+        wait_connected(self.trajectory_pub)
+        self.trajectory_pub.publish(msg)
+        receipt = self.receipts.wait_for(lambda m: m.frame_id in (token, f"refused:{token}"))
+        return receipt.frame_id == token
 
 
 @pytest.fixture(scope="module")
@@ -123,7 +141,17 @@ def sim(ros_stack):
         wait_for_services=["/sim/step", "/sim/set_terrain"],
     )
     handles = Sim(ros_stack)
-    time.sleep(0.5)
+    # The node's publishers may register after its services: every recorder must be written
+    # to before the first step, or a paused simulation never sends it what it missed.
+    for recorder in (
+        handles.joints,
+        handles.wrench,
+        handles.tip_ground,
+        handles.terrain,
+        handles.clock,
+        handles.receipts,
+    ):
+        wait_connected(recorder.sub)
     return handles
 
 
@@ -239,7 +267,7 @@ def test_bad_input_gives_clear_errors_and_the_sim_keeps_running(fresh):
     response = fresh.terrain_srv(terrain="file:/nonexistent/map.npy")
     assert not response.success and "/nonexistent/map.npy does not exist" in response.message
     assert not fresh.step_srv(0).success
-    fresh.trajectory([(1.0, {"j_elbow": 0.3})])
+    assert not fresh.trajectory([(1.0, {"j_elbow": 0.3})])
 
     fresh.steps(2)
     before = by_name(fresh.joints.take()[-1], "position")["j_shou_yaw"]
@@ -261,7 +289,7 @@ def test_bad_input_gives_clear_errors_and_the_sim_keeps_running(fresh):
 
 def test_scoop_pushed_into_the_terrain_leaves_a_trench(fresh):
     assert fresh.terrain_srv(terrain=FLAT).success
-    fresh.trajectory(
+    assert fresh.trajectory(
         [
             (8.0, SCOOP_ABOVE_GROUND),
             (12.0, SCOOP_BELOW_GROUND),

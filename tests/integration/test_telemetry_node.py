@@ -17,7 +17,7 @@ from std_srvs.srv import Trigger
 
 from ow_lander.description import ARM_JOINTS, UNSTOWED
 from ow_lander.model import LanderModel
-from ow_mission.testing import FLAT, advertise, subscribe
+from ow_mission.testing import FLAT, advertise, subscribe, wait_connected
 from ow_msgs.srv import StepSimulation
 from owl_msgs.msg import (
     ArmJointAccelerations,
@@ -79,7 +79,8 @@ def stack(ros_stack):
     telemetry = ros_stack.start_node("ow_lander", "telemetry", wait_for_topics=list(TOPICS))
     recorders = {topic: Recorder(topic, cls) for topic, cls in TOPICS.items()}
     recorders["/joint_states"] = Recorder("/joint_states", JointState)
-    time.sleep(1.0)  # every subscription connected
+    for recorder in recorders.values():  # written to before the first step of the paused sim
+        wait_connected(recorder.sub)
     return ros_stack, telemetry, recorders
 
 
