@@ -474,9 +474,10 @@ def test_every_server_publishes_its_status_at_the_configured_rate(stack, joints)
     for sub in subs:
         sub.unregister()
     for name, times in stamps.items():
-        # rospy's timers fire twice at one stamp when the clock jumps past a period: the
-        # distinct stamps are one per period at most (each a /clock tick late at most), and a
-        # 4 s window has most of them.
+        # rospy's timer fires again at once for periods it fell behind (make test once saw
+        # ArmStop's statuses at 225.74, 225.75, 225.75, 226.02, 226.08 s: 23 in a window of 22
+        # periods); the shared timer drops those catch-up firings: one status per period at
+        # most, and a 4 s window has most of them.
         expected = (times[-1] - times[0]) * frequency + 1
         assert 0.7 * expected <= len(set(times)) <= expected + 1.0, (name, times)
         assert times[-1] - times[0] >= 3.0, (name, times)

@@ -6,6 +6,11 @@ to look at the time. The arm services hold 14 servers, so every ``/clock`` woke 
 find, nearly always, that none was due (about 46 000 wakeups over a default mission).
 :func:`share_status_timer` stops the servers' own timers and publishes all their statuses from
 one timer at the same rate: the same messages at the same period, one thread woken.
+
+rospy's timer catches up when it falls behind (a ``/clock`` jump past its period, its thread
+late under load): it fires again at once for each period it missed, up to two. A status is a
+heartbeat, not a count of periods owed, so a firing less than half a period of simulation time
+after the last status is dropped: at most one status per period.
 """
 
 from __future__ import annotations
@@ -36,8 +41,16 @@ def share_status_timer(servers: Sequence[Any]) -> rospy.Timer | None:
     for server in servers:
         server.status_timer.shutdown()  # its thread ends at its next wakeup
 
+    period = 1.0 / frequency
+    last = float("-inf")  # s of sim time of the last status
+
     def publish(event: rospy.timer.TimerEvent) -> None:
+        nonlocal last
+        now = event.current_real.to_sec()
+        if 0.0 <= now - last < 0.5 * period:  # a catch-up firing (not a clock set back)
+            return
+        last = now
         for server in servers:
             server.publish_status_async(event)
 
-    return rospy.Timer(rospy.Duration(1.0 / frequency), publish)
+    return rospy.Timer(rospy.Duration(period), publish)
