@@ -58,8 +58,13 @@ def test_every_joint_state_gives_a_power_and_a_telemetry_message(stack):
     joints = Stamps("/joint_states", JointState)
     power = Stamps("/power", Power)
     telemetry = Stamps("/arm_joint_positions", ArmJointPositions)
-    _wait(lambda: len(joints.stamps()) > 100, "100 joint states")
-    window = joints.stamps()[10:100]  # all three subscribed and connected by then
+    for recorder in (joints, power, telemetry):  # written to by their publishers from now on
+        wait_connected(recorder.sub)
+    # Ten joint states later (0.1 s): the monitors' messages of any joint state that reaches
+    # us from then on were published after every connection was up.
+    start = len(joints.stamps()) + 10
+    _wait(lambda: len(joints.stamps()) >= start + 90, "100 joint states")
+    window = joints.stamps()[start : start + 90]
     _wait(
         lambda: set(window) <= set(power.stamps()) and set(window) <= set(telemetry.stamps()),
         "the power and telemetry of those joint states",
