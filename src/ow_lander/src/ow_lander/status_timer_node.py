@@ -10,7 +10,8 @@ one timer at the same rate: the same messages at the same period, one thread wok
 rospy's timer catches up when it falls behind (a ``/clock`` jump past its period, its thread
 late under load): it fires again at once for each period it missed, up to two. A status is a
 heartbeat, not a count of periods owed, so a firing less than half a period of simulation time
-after the last status is dropped: at most one status per period.
+after the last status is dropped: at most one status per period. A clock set back (a simulation
+restarted under the running nodes) restarts the timer from the new time.
 """
 
 from __future__ import annotations
@@ -53,4 +54,6 @@ def share_status_timer(servers: Sequence[Any]) -> rospy.Timer | None:
         for server in servers:
             server.publish_status_async(event)
 
-    return rospy.Timer(rospy.Duration(period), publish)
+    # reset: a clock set back (a simulation restarted under running nodes) restarts the timer
+    # from the new time; rospy's default ends its thread with ROSTimeMovedBackwardsException.
+    return rospy.Timer(rospy.Duration(period), publish, reset=True)
