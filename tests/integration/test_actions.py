@@ -514,6 +514,9 @@ def test_shared_status_timer_replaces_each_servers_own(stack, joints):
         timer.shutdown()
         timer.join(10.0)  # its last tick done: the counts are final
         assert not timer.is_alive()
+        for server in servers:  # the stopped ones ended at their first wakeup
+            server.status_timer.join(10.0)
+            assert not server.status_timer.is_alive()
         counts = set(calls.values())
         assert len(counts) == 1 and min(counts) >= 5, calls  # each tick publishes all three
         servers[1].status_frequency = 2.0

@@ -18,6 +18,7 @@ from ow_faults.stream_order import PacingStream
 from ow_lander.actions import ARM_ACTIONS
 from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.init_node import init_node, spin
+from ow_lander.status_timer_node import share_status_timer
 from ow_msgs.msg import JointStatesFlag
 from owl_msgs.msg import (
     ArmEndEffectorForceTorque,
@@ -110,6 +111,8 @@ class DetectorNode:
             "FaultClear", FaultClearAction, self._on_clear, auto_start=False
         )
         self.clear_server.start()
+        # Its status from a timer that outlives a clock set back (actionlib's own ends).
+        self._status_timer = share_status_timer([self.clear_server])
 
     def _on_flags(self, msg: JointStatesFlag) -> None:
         stamp = msg.header.stamp

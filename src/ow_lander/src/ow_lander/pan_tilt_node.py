@@ -20,6 +20,7 @@ from ow_lander.faults_watch_node import FaultWatch
 from ow_lander.feedback_node import StampedFeedback
 from ow_lander.init_node import init_node, spin
 from ow_lander.pan_tilt import AntennaPointing, MoveWatch, check_joints_goal
+from ow_lander.status_timer_node import share_status_timer
 from owl_msgs.msg import (
     PanTiltMoveCartesianAction,
     PanTiltMoveCartesianResult,
@@ -93,6 +94,10 @@ class PanTiltNode:
         self.joints_server.start()
         self._joints_feedback = StampedFeedback(self.joints_server.action_server, 0.0)
         self.cartesian_server.start()
+        # One status timer that outlives a clock set back (actionlib's own ends its thread).
+        self._status_timer = share_status_timer(
+            [self.joints_server.action_server, self.cartesian_server.action_server]
+        )
 
     def _on_joint_state(self, msg: JointState) -> None:
         with self._lock:
