@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 import rospy
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -140,6 +141,10 @@ def send_trajectory(stack):
         time.sleep(0.01)
     pause = stack.service("/sim/pause", Trigger)
     resume = stack.service("/sim/resume", Trigger)
+    receipts: list[str] = []
+    wait_connected(
+        subscribe("/sim/trajectory_received", Header, lambda m: receipts.append(m.frame_id))
+    )
 
     def send(duration_s, target, n_points=20):
         current = rospy.wait_for_message("/joint_states", JointState, timeout=10)
@@ -152,6 +157,7 @@ def send_trajectory(stack):
             start_s = rospy.Time.now().to_sec() + 0.1
             msg = JointTrajectory(joint_names=joints)
             msg.header.stamp = rospy.Time.from_sec(start_s)
+            msg.header.frame_id = f"test_power_sim {len(receipts)}"
             for s in np.linspace(0.0, 1.0, n_points + 1):
                 shape = 10 * s**3 - 15 * s**4 + 6 * s**5
                 rate = (30 * s**2 - 60 * s**3 + 30 * s**4) / duration_s
@@ -163,7 +169,10 @@ def send_trajectory(stack):
                     )
                 )
             publisher.publish(msg)
-            time.sleep(0.2)  # wall: the message reaches the paused simulation
+            deadline = time.monotonic() + 20.0  # queued by the paused simulation
+            while msg.header.frame_id not in receipts:
+                assert time.monotonic() < deadline, f"no receipt of {msg.header.frame_id}"
+                time.sleep(0.01)
         finally:
             assert resume().success
         return start_s

@@ -28,6 +28,7 @@ from ow_lander.description import (
 from ow_mission.testing import FLAT, advertise, subscribe, wait_connected
 from ow_msgs.msg import HeightMap
 from ow_msgs.srv import SetPidGains, SetTerrain, StepSimulation
+from ow_sim_bullet.config import CONTROLLER_NAMES
 
 
 class Recorder:
@@ -77,6 +78,7 @@ class Sim:
         self.terrain = Recorder("/sim/terrain", HeightMap)
         self.clock = Recorder("/clock", Clock)
         self.receipts = Recorder("/sim/trajectory_received", Header)
+        self.setpoint_receipts = Recorder("/sim/setpoint_received", Header)
         self._trajectories_sent = 0
         self.trajectory_pub = advertise("/sim/joint_trajectory", JointTrajectory, queue_size=10)
         self.setpoint_pubs: dict[str, rospy.Publisher] = {}
@@ -97,19 +99,27 @@ class Sim:
                 recorder.wait_for(lambda m: m.header.stamp.to_sec() >= end - 0.0305)
         return end
 
-    def publish(self, publisher: rospy.Publisher, msg) -> None:
-        deadline = time.monotonic() + 10.0
-        while publisher.get_num_connections() == 0 and time.monotonic() < deadline:
-            time.sleep(0.02)
-        publisher.publish(msg)
-        time.sleep(0.3)  # delivered before the next step request (the sim is paused)
-
-    def setpoint(self, controller: str, value: float) -> None:
+    def setpoint(self, controller: str, value: float) -> bool:
+        """Send one joint's set-point and wait until the paused simulation has taken or refused
+        it (``~setpoint_received``); whether it took it."""
         if controller not in self.setpoint_pubs:
             self.setpoint_pubs[controller] = advertise(
                 f"/{controller}_position_controller/command", Float64, queue_size=10
             )
-        self.publish(self.setpoint_pubs[controller], Float64(value))
+        joint = next(j for j, c in CONTROLLER_NAMES.items() if c == controller)
+
+        def receipts() -> list[str]:
+            names = (joint, f"refused:{joint}")
+            return [m.frame_id for m in self.setpoint_receipts.take() if m.frame_id in names]
+
+        before = len(receipts())
+        wait_connected(self.setpoint_pubs[controller])
+        self.setpoint_pubs[controller].publish(Float64(value))
+        deadline = time.monotonic() + 20.0
+        while len(receipts()) == before:
+            assert time.monotonic() < deadline, f"no receipt of {joint}'s set-point {value}"
+            time.sleep(0.02)
+        return receipts()[before] == joint
 
     def trajectory(self, points: list[tuple[float, dict[str, float]]]) -> bool:
         """Send a trajectory and wait until the paused simulation has queued or refused it
@@ -150,6 +160,7 @@ def sim(ros_stack):
         handles.terrain,
         handles.clock,
         handles.receipts,
+        handles.setpoint_receipts,
     ):
         wait_connected(recorder.sub)
     return handles
@@ -211,7 +222,7 @@ def test_setpoint_step_settles(fresh, record_property):
     fresh.steps(2)
     start = by_name(fresh.joints.take()[-1], "position")["j_shou_yaw"]
     target = start + 0.2
-    fresh.setpoint("shou_yaw", target)
+    assert fresh.setpoint("shou_yaw", target)
     fresh.joints.clear()
     fresh.steps(800)
     trace = np.array([by_name(m, "position")["j_shou_yaw"] for m in fresh.joints.take()])
@@ -256,7 +267,7 @@ def test_stowed_pose_holds_within_1_mrad_for_60_s_with_the_gravity_torque(fresh)
 
 
 def test_bad_input_gives_clear_errors_and_the_sim_keeps_running(fresh):
-    fresh.setpoint("shou_yaw", math.nan)
+    assert not fresh.setpoint("shou_yaw", math.nan)
     response = fresh.gains_srv(joint="j_elbow", p=1.0, i=0.0, d=0.0, i_clamp=0.0)
     assert not response.success and "unknown joint 'j_elbow'" in response.message
     response = fresh.gains_srv(joint="j_shou_yaw", p=-1.0, i=0.0, d=0.0, i_clamp=0.0)

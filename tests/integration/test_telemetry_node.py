@@ -12,13 +12,14 @@ import numpy as np
 import pytest
 import rospy
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64
+from std_msgs.msg import Float64, Header
 from std_srvs.srv import Trigger
 
 from ow_lander.description import ARM_JOINTS, UNSTOWED
 from ow_lander.model import LanderModel
 from ow_mission.testing import FLAT, advertise, subscribe, wait_connected
 from ow_msgs.srv import StepSimulation
+from ow_sim_bullet.config import CONTROLLER_NAMES
 from owl_msgs.msg import (
     ArmJointAccelerations,
     ArmJointPositions,
@@ -45,6 +46,7 @@ TOPICS = {
     "/pan_tilt_position": PanTiltPosition,
     "/arm_pose": ArmPose,
 }
+RECEIPTS = "/sim/setpoint_received"
 
 
 class Recorder:
@@ -79,6 +81,7 @@ def stack(ros_stack):
     telemetry = ros_stack.start_node("ow_lander", "telemetry", wait_for_topics=list(TOPICS))
     recorders = {topic: Recorder(topic, cls) for topic, cls in TOPICS.items()}
     recorders["/joint_states"] = Recorder("/joint_states", JointState)
+    recorders[RECEIPTS] = Recorder(RECEIPTS, Header)
     for recorder in recorders.values():  # written to before the first step of the paused sim
         wait_connected(recorder.sub)
     return ros_stack, telemetry, recorders
@@ -99,14 +102,20 @@ def wait_until_complete(recorders, until: float, timeout_s: float = 30.0) -> lis
         time.sleep(0.1)
 
 
-def command_arm(pose: dict[str, float]) -> None:
+def command_arm(recorders, pose: dict[str, float]) -> None:
+    """Send the set-points and return once the paused simulation has taken every one (their
+    receipts come on the module's one subscription: a new one might connect too late)."""
+    receipts = recorders[RECEIPTS]
+    before = len(receipts.take())
     for joint, value in pose.items():
-        publisher = advertise(f"/{joint[2:]}_position_controller/command", Float64, queue_size=1)
-        deadline = time.monotonic() + 10.0
-        while publisher.get_num_connections() == 0 and time.monotonic() < deadline:
-            time.sleep(0.02)
+        topic = f"/{CONTROLLER_NAMES[joint]}_position_controller/command"
+        publisher = wait_connected(advertise(topic, Float64, queue_size=1))
         publisher.publish(Float64(value))
-    time.sleep(0.5)  # delivered before the next step (the sim is paused)
+    deadline = time.monotonic() + 20.0
+    while len(taken := [m.frame_id for m in receipts.take()[before:]]) < len(pose):
+        assert time.monotonic() < deadline, f"set-points taken: {taken} of {sorted(pose)}"
+        time.sleep(0.02)
+    assert sorted(taken) == sorted(pose), taken
 
 
 def test_topic_types_are_owl_msgs(stack):
@@ -120,7 +129,7 @@ def test_every_joint_state_gives_one_message_per_topic_in_the_oceanwaters_order(
     ros_stack, _, recorders = stack
     for recorder in recorders.values():
         recorder.clear()
-    command_arm({"j_shou_yaw": 0.4, "j_dist_pitch": 2.5, "j_hand_yaw": 0.3})
+    command_arm(recorders, {"j_shou_yaw": 0.4, "j_dist_pitch": 2.5, "j_hand_yaw": 0.3})
     response = ros_stack.service("/sim/step", StepSimulation)(300)
     assert response.success, response.message
     # The last joint state is stamped one step before the clock.
@@ -164,7 +173,7 @@ def test_every_joint_state_gives_one_message_per_topic_in_the_oceanwaters_order(
 
 def test_the_node_keeps_up_with_the_simulation_running_as_fast_as_it_can(stack, record_property):
     ros_stack, telemetry, recorders = stack
-    command_arm({j: UNSTOWED[j] for j in ARM_JOINTS})
+    command_arm(recorders, {j: UNSTOWED[j] for j in ARM_JOINTS})
     for recorder in recorders.values():
         recorder.clear()
     assert ros_stack.service("/sim/resume", Trigger)().success

@@ -157,9 +157,10 @@ def sim():
 def test_the_runner_reports_what_it_did_with_each_command(sim):
     runner = SimRunner(sim, _NoOutputs(), 0.0, True, lambda: False)
     warnings: list[str] = []
-    runner.command_setpoint("j_shou_yaw", math.nan, warnings.append)
-    runner.command_setpoint("j_shou_yaw", -1e9, warnings.append)
-    runner.command_setpoint("j_shou_yaw", -1.5, warnings.append)
+    applied: list[float | None] = []
+    runner.command_setpoint("j_shou_yaw", math.nan, warnings.append, applied.append)
+    runner.command_setpoint("j_shou_yaw", -1e9, warnings.append, applied.append)
+    runner.command_setpoint("j_shou_yaw", -1.5, warnings.append, applied.append)
     receipts: list[float | None] = []
     runner.command_trajectory(
         lambda now, names: JointTrajectory.build(["j_elbow"], now, [1.0], [[0.0]], None, names),
@@ -185,6 +186,8 @@ def test_the_runner_reports_what_it_did_with_each_command(sim):
     assert warnings[3].startswith("trajectory set-point 9 rad for j_prox_pitch is beyond")
     # The receipts: None for the ignored one, the start (the paused clock) for the queued one.
     assert receipts == [None, sim.time - sim.dt]
+    # The set-points': None for the ignored one, the paused clock for the clipped and the other.
+    assert applied == [None, sim.time - sim.dt, sim.time - sim.dt]
     sim.reset()
 
 

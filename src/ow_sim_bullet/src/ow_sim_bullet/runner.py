@@ -79,7 +79,13 @@ class SimRunner:
             self._queue.append(command)
             self._wake.notify()
 
-    def command_setpoint(self, joint: str, position: float, warn: Callable[[str], None]) -> None:
+    def command_setpoint(
+        self,
+        joint: str,
+        position: float,
+        warn: Callable[[str], None],
+        applied: Callable[[float | None], None] | None = None,
+    ) -> None:
         """Set one joint's set-point (rad) before the next step (:meth:`BulletSim.set_setpoint`).
 
         Args:
@@ -87,6 +93,8 @@ class SimRunner:
             position: rad; beyond the joint's URDF limits it is clipped onto the limit.
             warn: called on the simulation thread with why the command was ignored (unknown
                 joint, non-finite position) or how it was clipped.
+            applied: called on the simulation thread, before any later command, with the sim
+                time (s) from which the set-point holds, or None when it was ignored.
         """
 
         def command() -> None:
@@ -94,9 +102,13 @@ class SimRunner:
                 clipped = self.sim.set_setpoint(joint, position)
             except CommandError as error:
                 warn(str(error))
+                if applied is not None:
+                    applied(None)
                 return
             if clipped is not None:
                 warn(clipped.describe())
+            if applied is not None:
+                applied(self.sim.time)
 
         self.enqueue(command)
 

@@ -4,27 +4,24 @@ from __future__ import annotations
 
 import threading
 import warnings
-from functools import partial
 from typing import Any
 
 import rospy
 import rospy.impl.simtime
 import tf2_ros
-from std_msgs.msg import Float64, Header
 from std_srvs.srv import Trigger, TriggerResponse
-from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from ow_dem_bridge.api import REMOTE_MODEL_NAME
 from ow_dem_bridge.remote_node import make_remote_model
-from ow_lander.conversions import EVERY_MESSAGE
 from ow_lander.description import URDF_PATH
 from ow_lander.init_node import init_node, spin
 from ow_lander.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.srv import SetTerrain, SetTerrainResponse, StepSimulation, StepSimulationResponse
 from ow_sim_bullet import conversions, outputs, wire
-from ow_sim_bullet.config import CONTROLLER_NAMES, SimConfig
-from ow_sim_bullet.errors import CommandError, SimError
+from ow_sim_bullet.commands_node import SimCommands
+from ow_sim_bullet.config import SimConfig
+from ow_sim_bullet.errors import SimError
 from ow_sim_bullet.lockstep_node import LockstepServer
 from ow_sim_bullet.reconfigure_node import SimReconfigure
 from ow_sim_bullet.runner import SimRunner
@@ -64,13 +61,10 @@ class SimNode:
     Faults (``/faults/parameter_updates``) and PID gains (dynamic_reconfigure): see
     :class:`~ow_sim_bullet.reconfigure_node.SimReconfigure`.
 
+    Commands (joint set-points, ``~joint_trajectory``) and their receipts: see
+    :class:`~ow_sim_bullet.commands_node.SimCommands`.
+
     Subscriptions:
-        /<controller>_position_controller/command (std_msgs/Float64): rad, set-point of one joint
-            (controllers shou_yaw, shou_pitch, prox_pitch, dist_pitch, hand_yaw, scoop_yaw,
-            grinder_yaw, ant_pan, ant_tilt); cancels that joint's trajectory.
-        /sim/joint_trajectory (trajectory_msgs/JointTrajectory): interpolated by the sim from
-            its stamp (0: on arrival); once queued ``~trajectory_received`` (std_msgs/Header)
-            gives its start, frame_id echoed ("refused:" prefixed, stamp 0, if ignored).
         /dem/scoop_wrench, /dem/grinder_wrench (geometry_msgs/WrenchStamped): with
             ``~terrain_forces: bridge`` only, the co-simulation's wrenches (ow_dem_bridge).
 
@@ -119,15 +113,7 @@ class SimNode:
         self.runner = SimRunner(
             self.sim, self.outputs, rtf, paused, rospy.is_shutdown, rospy.logerr
         )
-        for joint, controller in CONTROLLER_NAMES.items():
-            topic = f"/{controller}_position_controller/command"
-            rospy.Subscriber(
-                topic, Float64, partial(self._on_setpoint, joint), queue_size=EVERY_MESSAGE
-            )
-        rospy.Subscriber(
-            "~joint_trajectory", JointTrajectoryMsg, self._on_trajectory, queue_size=EVERY_MESSAGE
-        )
-        self._received_pub = rospy.Publisher("~trajectory_received", Header, queue_size=10)
+        self.commands = SimCommands(self.runner)  # set-points, trajectories, their receipts
         rospy.Service("~reset", Trigger, self._on_reset)
         rospy.Service("~pause", Trigger, self._on_pause)
         rospy.Service("~resume", Trigger, self._on_resume)
@@ -144,22 +130,6 @@ class SimNode:
         )
 
     # ------------------------------------------------------------------ callbacks
-    def _on_setpoint(self, joint: str, msg: Float64) -> None:
-        self.runner.command_setpoint(joint, msg.data, _warn)
-
-    def _on_trajectory(self, msg: JointTrajectoryMsg) -> None:
-        def receipt(start: float | None) -> None:  # before any later pause/resume/step
-            token = msg.header.frame_id if start is not None else f"refused:{msg.header.frame_id}"
-            stamp = rospy.Time(*conversions.stamp_parts(start or 0.0))
-            self._received_pub.publish(Header(stamp=stamp, frame_id=token))
-
-        try:
-            request = conversions.TrajectoryRequest.from_msg(msg)
-        except CommandError as error:
-            rospy.logerr(f"sim: trajectory ignored: {error}")
-            return receipt(None)
-        self.runner.command_trajectory(request.build, _warn, receipt)
-
     def _on_reset(self, _: Any) -> TriggerResponse:
         try:
             self.runner.call(self.sim.reset)
@@ -218,11 +188,6 @@ def _batch_publisher(topic: str, data_class: type) -> wire.BatchPublisher:
         warnings.simplefilter("ignore", SyntaxWarning)
         publisher = rospy.Publisher(topic, data_class, queue_size=None)
     return wire.BatchPublisher(publisher, rospy.is_shutdown, rospy.logdebug)
-
-
-def _warn(text: str) -> None:
-    """A warning, repeated at most once a second (a topic can repeat a command at any rate)."""
-    rospy.logwarn_throttle_identical(1.0, f"sim: {text}")
 
 
 def _set_rostime(sim_time: float) -> None:
