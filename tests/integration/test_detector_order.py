@@ -8,11 +8,14 @@ from __future__ import annotations
 import threading
 import time
 
+import pytest
 import rospy
 from actionlib_msgs.msg import GoalID, GoalStatus, GoalStatusArray
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Header
 
 from ow_faults.detector_node import DetectorNode
+from ow_mission.testing import advertise, wait_connected
 from ow_msgs.msg import JointStatesFlag
 
 JOINTS = ["j_shou_yaw", "j_shou_pitch"]
@@ -22,8 +25,26 @@ def _flags(t: float, locked: bool) -> JointStatesFlag:
     return JointStatesFlag(Header(stamp=rospy.Time.from_sec(t)), JOINTS, [False, locked])
 
 
-def test_a_goals_end_is_taken_after_the_flags_before_it(ros_stack):
-    detector = DetectorNode()
+@pytest.fixture()
+def detector(ros_stack):
+    """The detector in this process; its status timers end with the test: the one it stopped
+    (actionlib's own) and its shared one wake to a /clock a second on and see they are stopped,
+    rather than to the next module's simulation starting at 0 (a clock set back, which ends a
+    timer actionlib made with an exception)."""
+    node = DetectorNode()
+    yield node
+    node._status_timer.shutdown()
+    clock = wait_connected(advertise("/clock", Clock, queue_size=1))  # this process's own clock
+    timers = (node._status_timer, node.clear_server.status_timer)
+    deadline = time.monotonic() + 20.0
+    while any(timer.is_alive() for timer in timers):  # a second on, again (from 0: twice)
+        assert time.monotonic() < deadline, "the detector's status timers did not end"
+        clock.publish(Clock(rospy.get_rostime() + rospy.Duration(1.0)))
+        time.sleep(0.1)
+    clock.unregister()
+
+
+def test_a_goals_end_is_taken_after_the_flags_before_it(detector):
     published: list[tuple[float, int]] = []
     publish = detector._publish
     detector._publish = lambda status, stamp: (
