@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 import rospy
@@ -11,6 +13,7 @@ from visualization_msgs.msg import Marker
 
 from ow_lander.conversions import height_map_from_msg
 from ow_lander.description import SCOOP_TIP_FRAME, URDF_PATH
+from ow_lander.lockstep_node import simulation_status
 from ow_mission.testing import subscribe
 from ow_msgs.msg import GuardedMoveResult
 from ow_msgs.msg import HeightMap as HeightMapMsg
@@ -76,10 +79,22 @@ def test_a_plan_is_drawn_and_the_ground_found_is_marked(stack):
         sub.unregister()
     path = np.array([[p.x, p.y, p.z] for p in paths[-1].points])
     assert paths[-1].type == Marker.LINE_STRIP and len(path) > 10
-    # The path ends where the arm came to rest: the scoop tip's pose after the unstow.
+    # The path ends where the arm came to rest: the scoop tip's pose after the unstow, from a
+    # transform stamped after it. This process takes /tf (600 messages a wall second at the
+    # tests' 20x) on the subscription an earlier test's listener made; under load it lagged
+    # seconds behind, and the newest transform it had was the stowed pose.
+    rested = simulation_status().sim_time
     buffer = tf2_ros.Buffer()
     tf2_ros.TransformListener(buffer)
-    tip = buffer.lookup_transform("base_link", SCOOP_TIP_FRAME, rospy.Time(0), rospy.Duration(10))
+    deadline = time.monotonic() + 60.0
+    while True:
+        tip = buffer.lookup_transform(
+            "base_link", SCOOP_TIP_FRAME, rospy.Time(0), rospy.Duration(10)
+        )
+        if tip.header.stamp.to_sec() >= rested - 0.05:  # /tf at 30 Hz of sim time
+            break
+        assert time.monotonic() < deadline, f"no /tf after t = {rested} s"
+        time.sleep(0.05)
     t = tip.transform.translation
     assert np.allclose(path[-1], [t.x, t.y, t.z], atol=0.02)
 
