@@ -10,7 +10,6 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import rospy
-import tf2_ros
 from geometry_msgs.msg import PointStamped, WrenchStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -25,7 +24,7 @@ from ow_lander.description import (
     SCOOP_BELOW_GROUND,
     URDF_PATH,
 )
-from ow_mission.testing import FLAT, advertise, subscribe, wait_connected
+from ow_mission.testing import FLAT, advertise, subscribe, tf_buffer, wait_connected
 from ow_msgs.msg import HeightMap
 from ow_msgs.srv import SetPidGains, SetTerrain, StepSimulation
 from ow_sim_bullet.config import CONTROLLER_NAMES
@@ -206,8 +205,7 @@ def test_outputs(fresh):
     assert fresh.tip_ground.take()[-1].point.z == pytest.approx(DEFAULT_GROUND_Z)
     terrain = fresh.terrain.wait_for(lambda m: True)
     assert terrain.rows * terrain.cols == len(terrain.heights)
-    buffer = tf2_ros.Buffer(debug=False)
-    tf2_ros.TransformListener(buffer)
+    buffer = tf_buffer()
     # The listener connects asynchronously, and while paused the sim time a lookup timeout
     # counts in does not advance: step until the transforms arrive.
     deadline = time.monotonic() + 10.0

@@ -7,14 +7,13 @@ import time
 import numpy as np
 import pytest
 import rospy
-import tf2_ros
 from std_msgs.msg import String
 from visualization_msgs.msg import Marker
 
 from ow_lander.conversions import height_map_from_msg
 from ow_lander.description import SCOOP_TIP_FRAME, URDF_PATH
 from ow_lander.lockstep_node import simulation_status
-from ow_mission.testing import subscribe
+from ow_mission.testing import subscribe, tf_buffer
 from ow_msgs.msg import GuardedMoveResult
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.srv import GuardedMove, Unstow
@@ -46,8 +45,7 @@ def test_the_description_is_a_parameter_and_a_latched_topic(stack):
 
 
 def test_base_link_sits_in_the_world_frame_where_configured(stack):
-    buffer = tf2_ros.Buffer()
-    tf2_ros.TransformListener(buffer)
+    buffer = tf_buffer()
     transform = buffer.lookup_transform("world", "base_link", rospy.Time(0), rospy.Duration(10))
     t = transform.transform.translation
     assert np.allclose([t.x, t.y, t.z], WORLD_XYZ)
@@ -84,8 +82,7 @@ def test_a_plan_is_drawn_and_the_ground_found_is_marked(stack):
     # tests' 20x) on the subscription an earlier test's listener made; under load it lagged
     # seconds behind, and the newest transform it had was the stowed pose.
     rested = simulation_status().sim_time
-    buffer = tf2_ros.Buffer()
-    tf2_ros.TransformListener(buffer)
+    buffer = tf_buffer()
     deadline = time.monotonic() + 60.0
     while True:
         tip = buffer.lookup_transform(

@@ -32,6 +32,7 @@ Fixtures:
         execute) on ``ros_stack``; keyword arguments give each node more parameters.
 
 :func:`wait_connected` waits until a publisher or subscriber of the test is connected.
+:func:`tf_buffer` is a tf2 buffer whose listener ends with the module.
 :func:`set_terrain` gives the running simulation a new terrain and waits until the arm services
 have it: call it at the start of a test whose result must not depend on what earlier tests carved.
 
@@ -55,6 +56,7 @@ from ow_mission.testing_node import (
     leave_as_test_node,
     set_terrain,
     subscribe,
+    tf_buffer,
     unregister_endpoints,
     wait_connected,
 )
@@ -71,6 +73,7 @@ __all__ = [
     "set_terrain",
     "start_lander",
     "subscribe",
+    "tf_buffer",
     "wait_connected",
 ]
 

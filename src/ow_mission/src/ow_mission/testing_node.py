@@ -62,6 +62,18 @@ def advertise(topic: str, data_class: type, **kwargs: Any) -> Any:
     return publisher
 
 
+def tf_buffer() -> Any:
+    """A ``tf2_ros.Buffer`` filled by a listener that is unregistered when the test module's
+    stack ends. A listener left registered keeps this process taking every later module's
+    ``/tf`` (hundreds of messages a wall second at the tests' real-time factor), and a later
+    listener shares its subscription and its backlog."""
+    import tf2_ros
+
+    buffer = tf2_ros.Buffer()
+    _SUBSCRIBERS.append(tf2_ros.TransformListener(buffer))  # unregister() ends both of its
+    return buffer
+
+
 def set_terrain(stack: RosStack, spec: str = FLAT, lift_arm: bool = False) -> None:
     """Give the running simulation a new terrain and wait until the arm services have it.
 
