@@ -107,6 +107,22 @@ def test_a_node_that_dies_reports_its_log(ros_master):
     stack.shutdown()
 
 
+def test_a_node_started_again_under_its_name_keeps_the_earlier_ones_log(ros_master):
+    stack = RosStack(ros_master)
+    for attempt in range(2):
+        with pytest.raises(HarnessError, match=r"(?s)exited.*cannot read mission file"):
+            stack.start_node(
+                "ow_mission",
+                "mission",
+                name="harness_twice",
+                args=[f"/nonexistent/mission_{attempt}.yaml"],
+                wait_for_services=["/never"],
+            )
+    stack.shutdown()
+    logs = [ros_master.log_dir / name for name in ("harness_twice.log", "harness_twice.1.log")]
+    assert [f"mission_{k}.yaml" in log.read_text() for k, log in enumerate(logs)] == [True, True]
+
+
 def test_service_call_through_the_stack(ros_master):
     # A tiny real service in a child process, started like a user's own node would be.
     code = (

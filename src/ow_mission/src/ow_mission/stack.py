@@ -4,8 +4,8 @@
 :class:`RosStack` starts nodes on it as ``rosrun`` would (:func:`node_command`), waits for their
 services or topics, and stops them (SIGINT, and SIGTERM for a process that ignores it, then
 SIGKILL of each node's whole process group). Each node's output goes to
-``<log_dir>/<name>.log``; a node that dies or never becomes ready raises :class:`HarnessError`
-with the end of that log.
+``<log_dir>/<name>.log`` (``<name>.1.log`` ... for a name started again); a node that dies
+or never becomes ready raises :class:`HarnessError` with the end of that log.
 """
 
 from __future__ import annotations
@@ -115,6 +115,17 @@ def _end_process_group(proc: subprocess.Popen[bytes], timeout_s: float) -> None:
         os.killpg(proc.pid, signal.SIGKILL)
     with contextlib.suppress(subprocess.TimeoutExpired):
         proc.wait(timeout=timeout_s)
+
+
+def _new_log_path(log_dir: Path, name: str) -> Path:
+    """``<log_dir>/<name>.log``, or ``<name>.<k>.log`` with the first k free: a node started
+    again under its name (by a later test module on the same master, a restart) keeps the log
+    of the one before."""
+    path, k = log_dir / f"{name}.log", 0
+    while path.exists():
+        k += 1
+        path = log_dir / f"{name}.{k}.log"
+    return path
 
 
 def _log_tail(path: Path, lines: int = 40) -> str:
@@ -394,7 +405,7 @@ class RosStack:
             full = f"/{node_name}/{key}"
             self.master.set_param(full, value)
             self.params.append(full)
-        log_path = self.master.log_dir / f"{node_name}.log"
+        log_path = _new_log_path(self.master.log_dir, node_name)
         log = log_path.open("wb")
         proc = subprocess.Popen(
             [*node_command(package, executable), f"__name:={node_name}", *args],

@@ -36,7 +36,8 @@ Fixtures:
 :func:`set_terrain` gives the running simulation a new terrain and waits until the arm services
 have it: call it at the start of a test whose result must not depend on what earlier tests carved.
 
-Each node's output goes to ``<log_dir>/<name>.log``; a node that dies or never offers its
+Each node's output goes to ``<log_dir>/<name>.log`` (``<name>.1.log`` ... when a later module
+starts the name again); a node that dies or never offers its
 services raises :class:`HarnessError` with the end of that log.
 """
 
