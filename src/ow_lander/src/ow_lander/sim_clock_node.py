@@ -12,7 +12,7 @@ from std_srvs.srv import Trigger
 
 from ow_lander.lockstep_node import LockstepError, simulation_status
 
-#: frame_id prefix of the receipt of a trajectory the simulation ignored.
+#: frame_id prefix of the receipt of a command (trajectory, set-point) the simulation ignored.
 REFUSED = "refused:"
 #: ``/sim/pause``'s message when the clock was stopped already (ow_sim_bullet's sim node).
 ALREADY_PAUSED = "already paused"

@@ -11,13 +11,12 @@ from std_msgs.msg import Float64, Header
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from ow_lander.conversions import EVERY_MESSAGE
+from ow_lander.sim_clock_node import REFUSED
 from ow_sim_bullet import conversions
 from ow_sim_bullet.config import CONTROLLER_NAMES
 from ow_sim_bullet.errors import CommandError
 from ow_sim_bullet.runner import SimRunner
 
-#: frame_id prefix of the receipt of a command the simulation ignored.
-REFUSED = "refused:"
 #: receipts a publisher holds for a slow subscriber (a mission sends a few hundred commands).
 _RECEIPT_QUEUE = 1000
 
@@ -60,7 +59,7 @@ class SimCommands:
         def receipt(start: float | None) -> None:  # on the simulation thread
             _send(self._setpoint_receipts, joint, start)
 
-        self.runner.command_setpoint(joint, msg.data, warn, receipt)
+        self.runner.command_setpoint(joint, msg.data, _warn, receipt)
 
     def _on_trajectory(self, msg: JointTrajectoryMsg) -> None:
         def receipt(start: float | None) -> None:  # before any later pause/resume/step
@@ -71,17 +70,18 @@ class SimCommands:
         except CommandError as error:
             rospy.logerr(f"sim: trajectory ignored: {error}")
             return receipt(None)
-        self.runner.command_trajectory(request.build, warn, receipt)
+        self.runner.command_trajectory(request.build, _warn, receipt)
 
 
 def _send(publisher: rospy.Publisher, token: str, start: float | None) -> None:
-    """A receipt: ``token`` and the sim time ``start`` (s) it holds from, or refused."""
+    """A receipt: ``token`` and the sim time ``start`` (s) it holds from, or refused (the
+    prefix the receipts' reader, :mod:`ow_lander.sim_clock_node`, looks for)."""
     if start is None:
         token, start = REFUSED + token, 0.0
     stamp = rospy.Time(*conversions.stamp_parts(start))
     publisher.publish(Header(stamp=stamp, frame_id=token))
 
 
-def warn(text: str) -> None:
+def _warn(text: str) -> None:
     """A warning, repeated at most once a second (a topic can repeat a command at any rate)."""
     rospy.logwarn_throttle_identical(1.0, f"sim: {text}")
