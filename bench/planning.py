@@ -2,18 +2,18 @@
 
 The start states are those of the default mission (``src/ow_mission/config/mission.yaml``, its
 terrain): stowed, then the end of each of its nine steps, planned here with the pure core
-(:class:`~ow_lander.operations.Operations`) in the mission's order with the mission's requests.
-The guarded move's state is where its descent meets the terrain (the execution stops there); the
-terrain is carved under the digging segments as the simulation carves it. Every service is
-planned with each request the mission (or its circular-dig variant) sends it, from the state the
+(:class:`~ow_lander.operations.planner.Operations`) in the mission's order with the mission's
+requests. The guarded move's state is where its descent meets the terrain (the execution stops
+there); the terrain is carved under the digging segments as the simulation carves it. Every service
+is planned with each request the mission (or its circular-dig variant) sends it, from the state the
 mission sends it in and from every later one (a request for the trench's bottom, planned before
 the trench is dug, is rightly refused: the scoop would cut into the terrain), for a few
-planner seeds, each seed's planner prepared (:meth:`~ow_lander.operations.Operations.prepare`,
-untimed in the calls: the node does it at start-up) and reused across calls as the node does.
-One JSON line per metric: per service the median, p95 and largest wall time (ms), the calls
-and failures, and the median path length (rad) and work (J) of its plans; the preparation's
-median wall time; the whole mission's plans' path length and work; RRT*'s work with our
-objective vs path length.
+planner seeds, each seed's planner prepared
+(:meth:`~ow_lander.operations.planner.Operations.prepare`, untimed in the calls: the node does it at
+start-up) and reused across calls as the node does. One JSON line per metric: per service the
+median, p95 and largest wall time (ms), the calls and failures, and the median path length (rad) and
+work (J) of its plans; the preparation's median wall time; the whole mission's plans' path length
+and work; RRT*'s work with our objective vs path length.
 
     source env.sh && python bench/planning.py
 """
@@ -29,16 +29,22 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ow_description.description import (
+    DEFAULT_GROUND_Z,
+    SCOOP_TIP_FRAME,
+    STOWED,
+    UNSTOWED,
+    URDF_PATH,
+)
+from ow_description.model import LanderModel
+from ow_description.terrain import HeightMap
+from ow_description.trajectory import Speed
 from ow_lander.config import PlannerConfig
-from ow_lander.description import SCOOP_TIP_FRAME, STOWED, UNSTOWED, URDF_PATH
 from ow_lander.errors import PlanningError
-from ow_lander.model import LanderModel
-from ow_lander.operation_plan import OperationPlan
-from ow_lander.operations import Operations
-from ow_lander.planning import ArmPlanner, CheckContext
-from ow_lander.terrain import HeightMap
-from ow_lander.trajectory import Speed
-from ow_lander.validity import densify
+from ow_lander.operations.operation_plan import OperationPlan
+from ow_lander.operations.planner import Operations
+from ow_lander.planning.planner import ArmPlanner, CheckContext
+from ow_lander.planning.validity import densify
 from ow_mission.mission import STEPS
 from ow_mission.mission_config import DEFAULT_MISSION_FILE, MissionConfig
 from ow_sim_bullet.carving import TerrainCarver, collision_surface_points
@@ -249,7 +255,7 @@ def rrt_star_comparison() -> None:
     model = LanderModel()
     config = PlannerConfig()
     planner = ArmPlanner(model, config)
-    ctx = CheckContext(model.q_from(UNSTOWED), HeightMap.flat(-0.155))
+    ctx = CheckContext(model.q_from(UNSTOWED), HeightMap.flat(DEFAULT_GROUND_Z))
     rng = np.random.default_rng(7)
     origin = planner.arm(ctx.base)
     ours: list[float] = []

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ow_lander.description import ALL_JOINTS
+from ow_description.description import ALL_JOINTS, DEFAULT_GROUND_Z
 from ow_power.analysis import analyze, plot_power
 from ow_power.bagwriter import SplitBagWriter
 from ow_power.config import PowerConfig
@@ -105,7 +105,7 @@ def demo_plot(directory: Path) -> None:
 
 def messages_for_contact(stamp_ns: int) -> tuple[str, str, str, bytes]:
     messages = BagMessages()
-    point = messages.store.types["geometry_msgs/msg/Point"](x=2.0, y=0.0, z=-0.155)
+    point = messages.store.types["geometry_msgs/msg/Point"](x=2.0, y=0.0, z=DEFAULT_GROUND_Z)
     return messages.serialize(
         "ow_msgs/msg/GuardedMoveResult",
         header=messages.header(stamp_ns),

@@ -25,7 +25,12 @@ from typing import Any
 import pybullet as pb
 import yaml
 
-from ow_lander.description import SCOOP_ABOVE_GROUND, SCOOP_BELOW_GROUND, URDF_PATH
+from ow_description.description import (
+    DEFAULT_GROUND_Z,
+    SCOOP_ABOVE_GROUND,
+    SCOOP_BELOW_GROUND,
+    URDF_PATH,
+)
 from ow_sim_bullet import conversions
 from ow_sim_bullet.config import PID_YAML, SIM_YAML, SimConfig
 from ow_sim_bullet.outputs import WIRE_TOPICS, SimOutputs
@@ -100,7 +105,7 @@ class _TimedPybullet:
 
 def _simulation(forces: str) -> tuple[BulletSim, SimOutputs]:
     raw = {**yaml.safe_load(SIM_YAML.read_text()), **yaml.safe_load(PID_YAML.read_text())}
-    raw.update(terrain="flat:-0.155", terrain_forces=forces)
+    raw.update(terrain=f"flat:{DEFAULT_GROUND_Z}", terrain_forces=forces)
     config = SimConfig.from_dict(raw)
     model = make_force_model(config.terrain_forces, config.terrain_force_params)
     sim = BulletSim(config, parse_terrain_spec(config.terrain), model)

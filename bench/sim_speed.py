@@ -22,8 +22,8 @@ from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from ow_lander.description import SCOOP_ABOVE_GROUND, SCOOP_BELOW_GROUND
-from ow_mission.testing import RosStack, private_master
+from ow_bringup.testing import RosStack, private_master
+from ow_description.description import DEFAULT_GROUND_Z, SCOOP_ABOVE_GROUND, SCOOP_BELOW_GROUND
 from ow_msgs.msg import ToolState
 
 OUTPUTS = [
@@ -94,7 +94,11 @@ def main() -> None:
             stack.start_node(
                 "ow_sim_bullet",
                 "sim",
-                params={"real_time_factor": 0.0, "terrain": "flat:-0.155", "start_paused": True},
+                params={
+                    "real_time_factor": 0.0,
+                    "terrain": f"flat:{DEFAULT_GROUND_Z}",
+                    "start_paused": True,
+                },
                 wait_for_services=["/sim/resume"],
             )
             watch = ClockWatch()

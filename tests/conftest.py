@@ -1,3 +1,3 @@
-"""Fixtures for the whole suite: the ROS harness of ow_mission.testing (ros_master, ros_stack)."""
+"""Fixtures for the whole suite: the ROS harness of ow_bringup.testing (ros_master, ros_stack)."""
 
-pytest_plugins = ["ow_mission.testing"]
+pytest_plugins = ["ow_bringup.testing"]

@@ -21,19 +21,14 @@ from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
 import owl_msgs.msg as owl
-from ow_lander.actions import quaternion_from_rotation
-from ow_lander.description import (
-    ARM_JOINTS,
-    DEFAULT_GROUND_Z,
-    SCOOP_TIP_FRAME,
-    STAMP_SLACK_S,
-    UNSTOWED,
-)
-from ow_lander.lockstep_node import simulation_status
-from ow_lander.model import LanderModel
-from ow_mission.testing import action_client, set_terrain, subscribe, wait_connected
+from ow_bringup.testing import action_client, set_terrain, subscribe, wait_connected
+from ow_description.description import ARM_JOINTS, DEFAULT_GROUND_Z, SCOOP_TIP_FRAME, UNSTOWED
+from ow_description.model import LanderModel
+from ow_lander.actions.owl import quaternion_from_rotation
 from ow_msgs.msg import GroundDetectorSignal
 from ow_msgs.srv import StepSimulation, Unstow
+from ow_runtime.lockstep_client import simulation_status
+from ow_runtime.names import STAMP_SLACK_S
 
 GROUND = DEFAULT_GROUND_Z
 NAN = float("nan")
@@ -445,7 +440,7 @@ def test_goals_rejected_at_once_end_for_the_client_every_time(stack):
 
 
 def test_every_server_publishes_its_status_once_a_period(stack, joints):
-    # The arm services' 14 servers share one status heartbeat (ow_lander.status_timer_node):
+    # The arm services' 14 servers share one status heartbeat (ow_runtime.status_timer):
     # each server's status comes once at every boundary of 1 / actionlib_status_frequency s of
     # simulation time (5 Hz here). The paused simulation is stepped a period at a time and each
     # period's statuses are waited for, so what is counted does not depend on how fast the node
@@ -490,8 +485,8 @@ def test_shared_status_timer_replaces_each_servers_own(stack, joints):
     # In this process, on the stack's simulated clock: three servers' own timers are stopped
     # and one timer of their period publishes all three statuses, as many times each; servers
     # asked for different frequencies are refused, and a frequency of 0 needs no timer.
-    from ow_lander.errors import ConfigError
-    from ow_lander.status_timer_node import share_status_timer
+    from ow_runtime.errors import ConfigError
+    from ow_runtime.status_timer import share_status_timer
 
     servers = []
     calls: dict[int, int] = {}

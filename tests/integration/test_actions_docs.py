@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from ow_lander.description import DEFAULT_GROUND_Z
+from ow_description.description import DEFAULT_GROUND_Z
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "actions.md"
 

@@ -23,10 +23,10 @@ from sensor_msgs.msg import JointState
 from test_actions import JointLog, client, forget_clients, run
 
 import owl_msgs.msg as owl
-from ow_lander.description import ARM_JOINTS
-from ow_lander.lockstep_node import LockstepClient
-from ow_mission.testing import subscribe
+from ow_bringup.testing import subscribe
+from ow_description.description import ARM_JOINTS
 from ow_msgs.srv import Unstow
+from ow_runtime.lockstep_client import LockstepClient
 
 
 @pytest.fixture(scope="module")

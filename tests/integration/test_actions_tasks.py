@@ -11,15 +11,15 @@ from geometry_msgs.msg import Point, Pose, Quaternion
 from test_actions import joints, model, run, stack, tip  # noqa: F401 (fixtures)
 
 import owl_msgs.msg as owl
-from ow_lander.actions import quaternion_from_rotation
-from ow_lander.description import (
+from ow_bringup.testing import set_terrain
+from ow_description.description import (
     ARM_JOINTS,
     DEFAULT_GROUND_Z,
     SCOOP_ABOVE_GROUND,
     SCOOP_BELOW_GROUND,
 )
-from ow_lander.operations import DOCK_CENTRE, DOCK_POUR_HEIGHT
-from ow_mission.testing import set_terrain
+from ow_lander.actions.owl import quaternion_from_rotation
+from ow_lander.operations.planner import DOCK_CENTRE, DOCK_POUR_HEIGHT
 
 GROUND = DEFAULT_GROUND_Z
 

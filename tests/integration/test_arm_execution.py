@@ -19,14 +19,14 @@ import pytest
 import rospy
 from sensor_msgs.msg import JointState
 
+from ow_bringup.testing import set_terrain, subscribe
+from ow_description.description import ARM_JOINTS, DEFAULT_GROUND_Z, UNSTOWED
+from ow_description.model import ARM_LINKS, LanderModel
+from ow_description.terrain import HeightMap
+from ow_description.trajectory import read_csv
 from ow_lander.config import PlannerConfig
-from ow_lander.description import ARM_JOINTS, DEFAULT_GROUND_Z, UNSTOWED
-from ow_lander.model import ARM_LINKS, LanderModel
-from ow_lander.operations import DOCK_CENTRE, shoulder_yaw_for
-from ow_lander.planning import ArmPlanner, CheckContext
-from ow_lander.terrain import HeightMap
-from ow_lander.trajectory import read_csv
-from ow_mission.testing import set_terrain, subscribe
+from ow_lander.operations.planner import DOCK_CENTRE, shoulder_yaw_for
+from ow_lander.planning.planner import ArmPlanner, CheckContext
 from ow_msgs.srv import (
     DeliverSample,
     DigCircular,

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from sensor_msgs.msg import JointState
 
-from ow_lander.description import ARM_JOINTS, DEFAULT_GROUND_Z, UNSTOWED
-from ow_lander.model import LanderModel
-from ow_lander.trajectory import read_csv
-from ow_mission.testing import advertise
+from ow_bringup.testing import advertise
+from ow_description.description import ARM_JOINTS, DEFAULT_GROUND_Z, UNSTOWED
+from ow_description.model import LanderModel
+from ow_description.trajectory import read_csv
 from ow_msgs.srv import (
     DeliverSample,
     DigCircular,

@@ -1,4 +1,4 @@
-"""``ow_lander.batched_publisher_node.BatchedPublisher``: what a callback publishes goes out
+"""``ow_runtime.batched_publisher.BatchedPublisher``: what a callback publishes goes out
 through a writer thread, several messages per socket write, and the subscribers receive every
 message, in order, with the sequence numbers rospy would have given them."""
 
@@ -10,8 +10,8 @@ import rospy
 from geometry_msgs.msg import PointStamped
 from std_msgs.msg import Header
 
-from ow_lander.batched_publisher_node import BatchedPublisher
-from ow_mission.testing import subscribe
+from ow_bringup.testing import subscribe
+from ow_runtime.batched_publisher import BatchedPublisher
 
 COUNT = 2000
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from ow_lander.description import ARM_JOINTS
+from ow_description.description import ARM_JOINTS
 from ow_mission.fault_schedule import MISSION_STEPS
 from ow_mission.run_compare import differences
 

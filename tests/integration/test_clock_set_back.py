@@ -15,7 +15,7 @@ import rospy
 from actionlib_msgs.msg import GoalStatusArray
 from rosgraph_msgs.msg import Clock
 
-from ow_mission.testing import advertise, subscribe, wait_connected
+from ow_bringup.testing import advertise, subscribe, wait_connected
 
 #: the status topics of the action servers of each node started here.
 NODES = {

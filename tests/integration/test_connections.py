@@ -1,4 +1,4 @@
-"""``ow_mission.connections_node``: a subscription counts as sending only once the publisher's
+"""``ow_runtime.connections``: a subscription counts as sending only once the publisher's
 node writes to it through that very connection, read from the publisher's side
 (``getBusInfo``), not from the count rospy keeps on the subscriber's side."""
 
@@ -9,8 +9,8 @@ import time
 import rospy
 from std_msgs.msg import Float64, Header, String
 
-from ow_mission.connections_node import publishers_send_to, wait_sending
-from ow_mission.testing import FLAT, advertise, subscribe, wait_connected
+from ow_bringup.testing import FLAT, advertise, subscribe, wait_connected
+from ow_runtime.connections import publishers_send_to, wait_sending
 
 
 def test_a_subscription_is_sending_once_its_publishers_write_to_it(ros_stack):

@@ -10,11 +10,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from ow_bringup.testing import HarnessError, advertise, subscribe
 from ow_dem_bridge.api import ToolState
 from ow_dem_bridge.errors import ConfigError
 from ow_dem_bridge.remote_node import make_remote_model
 from ow_dem_bridge.table import load_table
-from ow_mission.testing import HarnessError, advertise, subscribe
 
 HEADER = "tool,material,depth_m,progress_m,Fx_N,Fy_N,Fz_N,Tx_Nm,Ty_Nm,Tz_Nm"
 ROWS = [

@@ -25,11 +25,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from ow_bringup.testing import subscribe
 from ow_dem_bridge.models import DEFAULT_TABLE_PATH
 from ow_dem_bridge.table import load_table
-from ow_lander.description import DEFAULT_GROUND_Z, URDF_PATH
-from ow_lander.model import LanderModel
-from ow_mission.testing import subscribe
+from ow_description.description import DEFAULT_GROUND_Z, URDF_PATH
+from ow_description.model import LanderModel
 
 GROUND_Z = DEFAULT_GROUND_Z
 DIG = {"x": 1.6, "y": 0.0, "depth": 0.05, "length": 0.2, "ground_position": GROUND_Z}

@@ -14,8 +14,8 @@ from actionlib_msgs.msg import GoalID, GoalStatus, GoalStatusArray
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Header
 
+from ow_bringup.testing import advertise, wait_connected
 from ow_faults.detector_node import DetectorNode
-from ow_mission.testing import advertise, wait_connected
 from ow_msgs.msg import JointStatesFlag
 
 JOINTS = ["j_shou_yaw", "j_shou_pitch"]

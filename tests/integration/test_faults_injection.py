@@ -14,7 +14,7 @@ from dynamic_reconfigure.client import Client
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from ow_mission.testing import advertise, subscribe
+from ow_bringup.testing import advertise, subscribe
 from ow_msgs.msg import JointStatesFlag
 from ow_msgs.srv import SetPidGains
 from owl_msgs.msg import (

@@ -16,7 +16,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Header
 
-from ow_mission.testing import action_client, advertise, subscribe
+from ow_bringup.testing import action_client, advertise, subscribe
 from ow_msgs.msg import Power
 from ow_power.config import BatteryConfig
 from owl_msgs.msg import (

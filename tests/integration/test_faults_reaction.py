@@ -25,9 +25,9 @@ from test_actions import JointLog, client, forget_clients, run
 from test_faults_injection import Latest
 
 import owl_msgs.msg as owl
-from ow_lander.description import DEFAULT_GROUND_Z, GRINDER_TIP_FRAME
-from ow_lander.model import LanderModel
-from ow_mission.testing import action_client, set_terrain, subscribe
+from ow_bringup.testing import action_client, set_terrain, subscribe
+from ow_description.description import DEFAULT_GROUND_Z, GRINDER_TIP_FRAME
+from ow_description.model import LanderModel
 from ow_msgs.msg import JointStatesFlag
 from ow_msgs.srv import StepSimulation, Stow, Unstow
 from owl_msgs.msg import ArmFaultsStatus, PanTiltFaultsStatus, SystemFaultsStatus

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 import rospy
 
-from ow_lander.conversions import height_map_from_msg
-from ow_lander.description import DEFAULT_GROUND_Z
-from ow_mission.testing import FLAT, set_terrain, subscribe
+from ow_bringup.testing import FLAT, set_terrain, subscribe
+from ow_description.conversions import height_map_from_msg
+from ow_description.description import DEFAULT_GROUND_Z
 from ow_msgs.msg import GuardedMoveResult
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.srv import Grind, GuardedMove

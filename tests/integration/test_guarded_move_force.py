@@ -6,9 +6,9 @@ import time
 import pytest
 import rospy
 
+from ow_bringup.testing import subscribe, wait_connected
+from ow_description.description import DEFAULT_GROUND_Z
 from ow_lander.config import ExecutionConfig
-from ow_lander.description import DEFAULT_GROUND_Z
-from ow_mission.testing import subscribe, wait_connected
 from ow_msgs.srv import GuardedMove, Unstow
 from owl_msgs.msg import ArmEndEffectorForceTorque
 

@@ -11,7 +11,7 @@ import pytest
 import rospy
 from std_srvs.srv import Empty
 
-from ow_mission.stack import (
+from ow_bringup.stack import (
     NODE_ENVIRONMENT,
     NODE_PYTHON_OPTIMIZE,
     NodeProcess,
@@ -19,7 +19,7 @@ from ow_mission.stack import (
     ignores_signal,
     node_command,
 )
-from ow_mission.testing import HarnessError, RosStack
+from ow_bringup.testing import HarnessError, RosStack
 
 
 def test_master_is_private_and_sim_time_is_set(ros_master):
@@ -45,7 +45,12 @@ def test_node_started_with_rosrun_offers_its_service_and_is_stopped(ros_master):
 
 @pytest.mark.parametrize(
     ("package", "executable"),
-    [("ow_power", "record"), ("ow_mission", "monitors"), ("rosout", "rosout")],
+    [
+        ("ow_power", "record"),
+        ("ow_bringup", "monitors"),
+        ("ow_mission", "monitors"),
+        ("rosout", "rosout"),
+    ],
 )
 def test_a_node_runs_as_the_program_rosrun_finds_for_it(package, executable):
     found = subprocess.run(
@@ -143,7 +148,7 @@ def test_service_call_through_the_stack(ros_master):
 
 SCRIPT = """
 import sys, time
-from ow_mission.stack import RosStack, private_master
+from ow_bringup.stack import RosStack, private_master
 with private_master() as master:
     stack = RosStack(master)
     try:
@@ -200,8 +205,8 @@ def test_a_modules_publishers_end_with_it_and_a_later_one_gets_its_own_queue(ros
     module's nodes drop joint states."""
     from sensor_msgs.msg import JointState
 
-    from ow_mission.testing import advertise
-    from ow_mission.testing_node import unregister_endpoints
+    from ow_bringup.testing import advertise
+    from ow_bringup.testing_node import unregister_endpoints
 
     topic = "/harness_states"
     manager = rospy.impl.registration.get_topic_manager()

@@ -1,4 +1,4 @@
-"""``ow_lander.init_node``: a node's shutdown wakes rospy's registration thread once rospy's
+"""``ow_runtime.node``: a node's shutdown wakes rospy's registration thread once rospy's
 shutdown flag is up, instead of leaving it to its 0.5 s wait (every node stopped ~0.5 s later);
 ``spin`` returns when the node shuts down; ``exit_now`` ends the process without Python's
 teardown, its output and logs written; the node's TCPROS server keeps many connections waiting
@@ -18,7 +18,7 @@ CHILD = """
 import sys, threading, time
 import rospy, rospy.core
 from rospy.impl.registration import RegManager, get_registration_listeners
-from ow_lander.init_node import init_node
+from ow_runtime.node import init_node
 
 class Watched(threading.Condition):
     outcomes = []
@@ -67,7 +67,7 @@ def _words(master, code: str, *args: str) -> list[str]:
 SPIN_CHILD = """
 import os, signal, threading
 import rospy
-import ow_lander.init_node as init_node
+import ow_runtime.node as init_node
 
 waits = []
 
@@ -92,7 +92,7 @@ def test_spin_returns_when_a_signal_shuts_the_node_down(ros_master):
 
 EXIT_CHILD = """
 import atexit, logging, sys
-from ow_lander.init_node import exit_now
+from ow_runtime.node import exit_now
 
 logging.basicConfig(filename=sys.argv[1], level=logging.INFO)
 atexit.register(lambda: print("teardown ran"))
@@ -120,7 +120,7 @@ BACKLOG_CHILD = """
 import socket, sys, threading
 import rospy
 from rospy.impl import tcpros_base
-from ow_lander.init_node import init_node
+from ow_runtime.node import init_node
 
 stuck = threading.Event()
 # The server's accept loop handles one connection at a time: hold it at the first.
@@ -151,7 +151,7 @@ def test_a_node_keeps_many_connections_waiting_while_it_accepts_one(ros_master, 
 
 REFUSING_CHILD = """
 import rospy
-from ow_lander.init_node import exit_now, init_node
+from ow_runtime.node import exit_now, init_node
 
 init_node("refusing_node")
 rospy.Publisher("/refusing_topic", rospy.AnyMsg, queue_size=1)  # registered with the master
@@ -177,7 +177,7 @@ def test_a_node_that_exits_without_shutting_down_leaves_the_master(ros_master):
 SLEEP_CHILD = """
 import os, signal, sys, threading
 import rospy, rospy.core, rospy.rostime
-import ow_lander.init_node as init_node
+import ow_runtime.node as init_node
 
 sleeps = []  # rospy's wall sleeps in the main thread
 real = rospy.rostime.wallsleep

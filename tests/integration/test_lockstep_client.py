@@ -13,8 +13,8 @@ import time
 
 from sensor_msgs.msg import JointState
 
-from ow_lander.lockstep_node import LockstepClient, simulation_status
-from ow_mission.testing import FLAT, subscribe
+from ow_bringup.testing import FLAT, subscribe
+from ow_runtime.lockstep_client import LockstepClient, simulation_status
 
 #: s of sim time the simulation must run past the registration, in steps of the latency.
 RUN_ON_S = 2.0

@@ -13,9 +13,9 @@ import time
 import rospy
 from std_srvs.srv import Trigger
 
-from ow_lander.lockstep_node import simulation_status
-from ow_mission.testing import FLAT
+from ow_bringup.testing import FLAT
 from ow_msgs.srv import Unstow
+from ow_runtime.lockstep_client import simulation_status
 
 
 def test_a_step_called_before_the_arm_services_joined_the_lockstep_waits_for_them(ros_stack):

@@ -31,9 +31,9 @@ import rospy
 import yaml
 from PIL import Image
 
-from ow_lander.conversions import height_map_from_msg
-from ow_lander.model import URDF_PATH, LanderModel
-from ow_lander.operations import DOCK_CENTRE, POUR_TILT
+from ow_description.conversions import height_map_from_msg
+from ow_description.model import URDF_PATH, LanderModel
+from ow_lander.operations.planner import DOCK_CENTRE, POUR_TILT
 from ow_mission.figures import wait_for_figures
 from ow_mission.mission import MISSION_TELEMETRY_HZ
 from ow_mission.mission_config import DEFAULT_MISSION_FILE

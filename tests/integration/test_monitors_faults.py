@@ -10,15 +10,15 @@ from dynamic_reconfigure import DynamicReconfigureCallbackException
 from dynamic_reconfigure.client import Client
 from dynamic_reconfigure.encoding import decode_config
 
-from ow_lander.fault_reaction import CHANGES_TOPIC
-from ow_mission.stack import HarnessError
+from ow_bringup.stack import HarnessError
+from ow_faults.protocol import CHANGES_TOPIC
 from ow_msgs.msg import FaultChange
 
 
 @pytest.fixture(scope="module")
 def stack(ros_stack):
     ros_stack.start_node(
-        "ow_mission",
+        "ow_bringup",
         "monitors",
         params={"serve_faults": True, "faults": {"ant_pan_joint_locked_failure": True}},
         wait_for_services=["/faults/set_parameters"],
@@ -66,7 +66,7 @@ def test_a_bad_fault_server_parameter_stops_the_node_naming_it(ros_stack, params
     # A name of its own each: the parameters of an earlier one stay on the master.
     with pytest.raises(HarnessError, match=named):
         ros_stack.start_node(
-            "ow_mission",
+            "ow_bringup",
             "monitors",
             name=f"monitors_bad_{len(ros_stack.nodes)}",
             params=params,

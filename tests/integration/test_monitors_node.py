@@ -13,8 +13,8 @@ from dynamic_reconfigure.client import Client
 from sensor_msgs.msg import BatteryState, JointState
 from visualization_msgs.msg import Marker
 
-from ow_mission.stack import HarnessError
-from ow_mission.testing import subscribe, wait_connected
+from ow_bringup.stack import HarnessError
+from ow_bringup.testing import subscribe, wait_connected
 from ow_msgs.msg import FaultChangeApplied, Power
 from owl_msgs.msg import ArmJointPositions
 
@@ -45,7 +45,7 @@ def stack(ros_stack):
     ros_stack.start_node("ow_faults", "faults", wait_for_services=["/faults/set_parameters"])
     ros_stack.start_node("ow_sim_bullet", "sim", wait_for_topics=["/joint_states"])
     ros_stack.start_node(
-        "ow_mission",
+        "ow_bringup",
         "monitors",
         params={"power": {"auxiliary_power_w": P0_W}, "telemetry": {"rate_hz": 0.0}},
         wait_for_topics=["/power", "/arm_joint_positions", "/system_faults_status"],
@@ -124,7 +124,7 @@ def _refused(ros_stack, name: str, params: dict, match: str) -> None:
     """A monitors node started with ``params`` stops, its log matching ``match``."""
     with pytest.raises(HarnessError, match=match):
         ros_stack.start_node(
-            "ow_mission",
+            "ow_bringup",
             "monitors",
             name=name,
             params=params,

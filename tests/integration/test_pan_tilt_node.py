@@ -15,8 +15,8 @@ from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import Point
 from sensor_msgs.msg import JointState
 
-from ow_lander.pan_tilt import AntennaPointing
-from ow_mission.testing import FLAT, action_client, subscribe
+from ow_bringup.testing import FLAT, action_client, subscribe
+from ow_lander.mast.pan_tilt import AntennaPointing
 from owl_msgs.msg import (
     PanTiltMoveCartesianAction,
     PanTiltMoveCartesianGoal,

@@ -19,7 +19,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
 
-from ow_mission.testing import advertise, subscribe, wait_connected
+from ow_bringup.testing import advertise, subscribe, wait_connected
 from ow_msgs.msg import Operation, Power
 from ow_msgs.srv import RecorderProgress
 
@@ -79,7 +79,7 @@ class Feeder:
         # Written in this thread (queue_size None): nothing is queued that a lagging writer
         # thread could drop. (make test: this test wrote 200 of its 201 joint states on both
         # connections, made with the queue of one of a /joint_states publisher an earlier
-        # module had left registered in this process; see ow_mission.testing.advertise.)
+        # module had left registered in this process; see ow_bringup.testing.advertise.)
         self.clock = advertise("/clock", Clock, queue_size=None)
         self.joint_states = advertise(joint_states_topic, JointState, queue_size=None)
         self.operation = advertise("/arm/operation", Operation, queue_size=10, latch=True)

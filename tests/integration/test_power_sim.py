@@ -21,9 +21,9 @@ from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from ow_lander.description import DEFAULT_GROUND_Z, UNSTOWED
-from ow_lander.model import LanderModel
-from ow_mission.testing import advertise, subscribe, wait_connected
+from ow_bringup.testing import advertise, subscribe, wait_connected
+from ow_description.description import DEFAULT_GROUND_Z, UNSTOWED
+from ow_description.model import LanderModel
 from ow_msgs.msg import GuardedMoveResult, Power
 from ow_msgs.srv import GuardedMove, Unstow
 from ow_power.energy import ArmEnergyModel

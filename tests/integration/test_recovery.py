@@ -17,8 +17,8 @@ import rospy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from ow_lander.description import ARM_JOINTS, UNSTOWED
-from ow_mission.testing import advertise, wait_connected
+from ow_bringup.testing import advertise, wait_connected
+from ow_description.description import ARM_JOINTS, UNSTOWED
 from ow_msgs.srv import Unstow
 
 #: rad, the shoulder yaw's URDF limits.

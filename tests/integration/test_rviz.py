@@ -25,7 +25,7 @@ import yaml
 from PIL import Image
 from sensor_msgs.msg import JointState
 
-from ow_lander.model import LanderModel
+from ow_description.model import LanderModel
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.srv import Unstow
 from ow_viz.config import CONFIG_FILE as VIZ_YAML

@@ -10,7 +10,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from ow_mission.testing import advertise, subscribe, wait_connected
+from ow_bringup.testing import advertise, subscribe, wait_connected
 from ow_msgs.srv import StepSimulation
 
 #: rad, an arm pose in front of the lander, reached from the stowed pose by a trajectory.

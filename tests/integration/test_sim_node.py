@@ -17,14 +17,14 @@ from std_msgs.msg import Float64, Header
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from ow_lander.description import (
+from ow_bringup.testing import FLAT, advertise, subscribe, tf_buffer, wait_connected
+from ow_description.description import (
     DEFAULT_GROUND_Z,
     EUROPA_GRAVITY,
     SCOOP_ABOVE_GROUND,
     SCOOP_BELOW_GROUND,
     URDF_PATH,
 )
-from ow_mission.testing import FLAT, advertise, subscribe, tf_buffer, wait_connected
 from ow_msgs.msg import HeightMap
 from ow_msgs.srv import SetPidGains, SetTerrain, StepSimulation
 from ow_sim_bullet.config import CONTROLLER_NAMES

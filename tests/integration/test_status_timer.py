@@ -1,4 +1,4 @@
-"""``ow_lander.status_timer_node.share_status_timer`` on a simulated clock driven by hand, in a
+"""``ow_runtime.status_timer.share_status_timer`` on a simulated clock driven by hand, in a
 child process (its rospy time is its own): one status a period, and a clock set back (a
 simulation restarted under running nodes) restarts the timer instead of ending its thread.
 
@@ -13,7 +13,7 @@ CHILD = """
 import threading, time
 import rospy
 from rospy import rostime
-from ow_lander.status_timer_node import share_status_timer
+from ow_runtime.status_timer import share_status_timer
 
 class OwnTimer:
     stopped = False

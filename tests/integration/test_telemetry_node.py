@@ -15,9 +15,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Header
 from std_srvs.srv import Trigger
 
-from ow_lander.description import ARM_JOINTS, UNSTOWED
-from ow_lander.model import LanderModel
-from ow_mission.testing import FLAT, advertise, subscribe, wait_connected
+from ow_bringup.testing import FLAT, advertise, subscribe, wait_connected
+from ow_description.description import ARM_JOINTS, UNSTOWED
+from ow_description.model import LanderModel
 from ow_msgs.srv import StepSimulation
 from ow_sim_bullet.config import CONTROLLER_NAMES
 from owl_msgs.msg import (

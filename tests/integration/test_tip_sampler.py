@@ -1,4 +1,4 @@
-"""``ow_lander.tip_sampler_node.TipSampler``: a ``/tf`` message counts as arrived on the tip
+"""``ow_lander.arm_services.tip_sampler.TipSampler``: a ``/tf`` message counts as arrived on the tip
 stream only once its tip has been sampled. The simulation's ``/tf`` and joint states share
 stamps, and a decision on the joint state of ``t`` waits for the tip stream to reach ``t``: it
 must see a contact found at ``t``. Marked before the sample, a contact was once acted on one
@@ -16,9 +16,9 @@ from geometry_msgs.msg import Quaternion, Transform, TransformStamped, Vector3
 from std_msgs.msg import Header
 from tf2_msgs.msg import TFMessage
 
-from ow_lander.description import BASE_FRAME, SCOOP_TIP_FRAME
-from ow_lander.guard_streams import GuardStreams
-from ow_lander.tip_sampler_node import TipSampler
+from ow_description.description import BASE_FRAME, SCOOP_TIP_FRAME
+from ow_lander.arm_services.tip_sampler import TipSampler
+from ow_lander.execution.guard_streams import GuardStreams
 
 
 def _transform(parent: str, child: str, stamp: genpy.Time) -> TransformStamped:

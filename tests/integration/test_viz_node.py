@@ -10,13 +10,13 @@ import rospy
 from std_msgs.msg import String
 from visualization_msgs.msg import Marker
 
-from ow_lander.conversions import height_map_from_msg
-from ow_lander.description import SCOOP_TIP_FRAME, URDF_PATH
-from ow_lander.lockstep_node import simulation_status
-from ow_mission.testing import subscribe, tf_buffer
+from ow_bringup.testing import subscribe, tf_buffer
+from ow_description.conversions import height_map_from_msg
+from ow_description.description import SCOOP_TIP_FRAME, URDF_PATH
 from ow_msgs.msg import GuardedMoveResult
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.srv import GuardedMove, Unstow
+from ow_runtime.lockstep_client import simulation_status
 from ow_viz.scene import terrain_mesh
 
 WORLD_XYZ = (0.5, -0.25, 0.1)  # m, base_link in world for this test

@@ -15,7 +15,7 @@ from ow_dem_bridge.conversions import tool_state_from_msg
 from ow_dem_bridge.errors import ConfigError, GeometryError
 from ow_dem_bridge.geometry import load_tool
 from ow_dem_bridge.models import TableModel, make_model
-from ow_lander.description import URDF_PATH
+from ow_description.description import URDF_PATH
 
 
 def test_scoop_plates_from_the_urdf() -> None:

@@ -9,8 +9,10 @@ import pytest
 from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
 
 import owl_msgs.msg as owl
+from ow_description.description import ARM_JOINTS, SCOOP_TIP_FRAME, UNSTOWED
+from ow_description.model import LanderModel
 from ow_lander import conversions as conv
-from ow_lander.actions import (
+from ow_lander.actions.owl import (
     ArmState,
     action_values,
     arm_state,
@@ -21,9 +23,7 @@ from ow_lander.actions import (
     to_request,
     validate_goal,
 )
-from ow_lander.description import ARM_JOINTS, SCOOP_TIP_FRAME, UNSTOWED
 from ow_lander.errors import GoalError
-from ow_lander.model import LanderModel
 
 NAN, INF = float("nan"), float("inf")
 GROUND = -0.155

@@ -5,9 +5,9 @@ import math
 import pytest
 
 import owl_msgs.msg as owl
-from ow_lander.actions import to_request, validate_goal
+from ow_lander.actions.owl import to_request, validate_goal
 from ow_lander.conversions import fill_fields, goal_to_dict
-from ow_lander.workspace import shoulder_yaw_for
+from ow_lander.operations.workspace import shoulder_yaw_for
 from ow_mission.action_steps import action_goal, step_response
 from ow_mission.errors import ConfigError
 from ow_mission.mission import STEPS

@@ -6,13 +6,13 @@ import math
 import numpy as np
 import pytest
 
+from ow_description.description import STOWED
+from ow_description.model import LanderModel
 from ow_lander.config import ArmServicesConfig
-from ow_lander.description import STOWED
-from ow_lander.execution import ExecutionMonitor
-from ow_lander.ground_detection import WrenchDetector
-from ow_lander.model import LanderModel
-from ow_lander.operations import Operations
-from ow_lander.planning import ArmPlanner
+from ow_lander.execution.ground_detection import WrenchDetector
+from ow_lander.execution.monitor import ExecutionMonitor
+from ow_lander.operations.planner import Operations
+from ow_lander.planning.planner import ArmPlanner
 
 CONFIG = ArmServicesConfig()
 T_START = 100.0
@@ -207,9 +207,9 @@ def test_guarded_joint_move_without_a_breach_succeeds(model, unstow):
 
 def test_velocity_detector_samples_are_kept_for_publishing(model):
     planner = ArmPlanner(model, CONFIG.planner)
-    from ow_lander.description import DEFAULT_GROUND_Z, UNSTOWED
-    from ow_lander.execution import with_settle_pause
-    from ow_lander.terrain import HeightMap
+    from ow_description.description import DEFAULT_GROUND_Z, UNSTOWED
+    from ow_description.terrain import HeightMap
+    from ow_lander.execution.monitor import with_settle_pause
 
     plan = Operations(planner).plan_guarded_move(
         model.q_from(UNSTOWED), HeightMap.flat(DEFAULT_GROUND_Z), {"use_defaults": True}

@@ -3,8 +3,8 @@
 import pytest
 import yaml
 
+from ow_description.description import DEFAULT_GROUND_Z
 from ow_lander.config import CONFIG_FILE, ArmServicesConfig
-from ow_lander.description import DEFAULT_GROUND_Z
 from ow_lander.errors import ConfigError
 
 

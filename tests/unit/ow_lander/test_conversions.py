@@ -9,14 +9,14 @@ import pytest
 from geometry_msgs.msg import TransformStamped
 from tf2_msgs.msg import TFMessage
 
+from ow_description.trajectory import PathSegment, time_parameterize
 from ow_lander.conversions import (
     guarded_move_result_msg,
     operation_msg,
     tf_message_stamps,
     trajectory_msg,
 )
-from ow_lander.execution import ExecutionResult
-from ow_lander.trajectory import PathSegment, time_parameterize
+from ow_lander.execution.monitor import ExecutionResult
 from ow_msgs.msg import Operation
 from ow_msgs.srv import PublishTrajectoryResponse, UnstowResponse
 

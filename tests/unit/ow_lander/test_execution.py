@@ -5,25 +5,25 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ow_lander.config import ArmServicesConfig, ExecutionConfig
-from ow_lander.description import (
+from ow_description.description import (
     ARM_JOINTS,
     DEFAULT_GROUND_Z,
     SCOOP_TIP_FRAME,
     STOWED,
     UNSTOWED,
 )
-from ow_lander.execution import (
+from ow_description.model import LanderModel
+from ow_description.terrain import HeightMap
+from ow_description.trajectory import PathSegment, time_parameterize
+from ow_lander.config import ArmServicesConfig, ExecutionConfig
+from ow_lander.execution.monitor import (
     ExecutionMonitor,
     start_error,
     unknown_joints,
     with_settle_pause,
 )
-from ow_lander.model import LanderModel
-from ow_lander.operations import Operations
-from ow_lander.planning import ArmPlanner
-from ow_lander.terrain import HeightMap
-from ow_lander.trajectory import PathSegment, time_parameterize
+from ow_lander.operations.planner import Operations
+from ow_lander.planning.planner import ArmPlanner
 
 CONFIG = ArmServicesConfig()
 #: s (sim), when the trajectories below start; joint states come at 50 Hz.

@@ -1,11 +1,11 @@
-"""The arm's and the mast's reaction rules (ow_lander.fault_reaction), table-driven."""
+"""The arm's and the mast's reaction rules (ow_lander.execution.fault_reaction), table-driven."""
 
 from __future__ import annotations
 
 import pytest
 
-from ow_lander import fault_reaction as fr
-from ow_lander.fault_reaction import FaultReaction, group_of, watches_force
+from ow_lander.execution import fault_reaction as fr
+from ow_lander.execution.fault_reaction import FaultReaction, group_of, watches_force
 from owl_msgs.msg import ArmFaultsStatus, PanTiltFaultsStatus, SystemFaultsStatus
 
 LOCKED = {"shou_pitch_joint_locked_failure": True, "ant_pan_joint_locked_failure": False}

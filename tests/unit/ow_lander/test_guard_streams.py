@@ -3,8 +3,8 @@ readings wake the waiting threads only while a decision waits for a stream."""
 
 import threading
 
-from ow_lander.description import STAMP_SLACK_S
-from ow_lander.guard_streams import GuardStreams
+from ow_lander.execution.guard_streams import GuardStreams
+from ow_runtime.names import STAMP_SLACK_S
 
 
 class CountingCondition(threading.Condition):

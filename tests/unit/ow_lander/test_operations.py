@@ -7,14 +7,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from ow_description.description import ARM_JOINTS, DEFAULT_GROUND_Z, STOWED, UNSTOWED
+from ow_description.model import ARM_LINKS, LanderModel
+from ow_description.terrain import HeightMap
+from ow_description.trajectory import Speed
 from ow_lander.config import PlannerConfig
-from ow_lander.description import ARM_JOINTS, DEFAULT_GROUND_Z, STOWED, UNSTOWED
 from ow_lander.errors import PlanningError
-from ow_lander.model import ARM_LINKS, LanderModel
-from ow_lander.operations import DOCK_CENTRE, Operations, shoulder_yaw_for
-from ow_lander.planning import ArmPlanner, CheckContext
-from ow_lander.terrain import HeightMap
-from ow_lander.trajectory import Speed
+from ow_lander.operations.planner import DOCK_CENTRE, Operations, shoulder_yaw_for
+from ow_lander.planning.planner import ArmPlanner, CheckContext
 
 GROUND = DEFAULT_GROUND_Z
 DIGGING = {

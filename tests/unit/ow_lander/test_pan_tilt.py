@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from ow_lander.description import UNSTOWED
+from ow_description.description import UNSTOWED
 from ow_lander.errors import GoalError
-from ow_lander.pan_tilt import (
+from ow_lander.mast.pan_tilt import (
     PAN_LIMIT_RAD,
     TILT_LIMIT_RAD,
     AntennaPointing,

@@ -3,14 +3,14 @@
 import numpy as np
 import pytest
 
+from ow_description.description import DEFAULT_GROUND_Z, UNSTOWED
+from ow_description.model import LanderModel
+from ow_description.terrain import HeightMap
 from ow_lander.config import PlannerConfig
-from ow_lander.description import DEFAULT_GROUND_Z, UNSTOWED
 from ow_lander.errors import PlanningError
-from ow_lander.model import LanderModel
-from ow_lander.operations import Operations
-from ow_lander.planning import ArmPlanner, CheckContext
-from ow_lander.terrain import HeightMap
-from ow_lander.validity import densify
+from ow_lander.operations.planner import Operations
+from ow_lander.planning.planner import ArmPlanner, CheckContext
+from ow_lander.planning.validity import densify
 
 
 @pytest.fixture(scope="module")

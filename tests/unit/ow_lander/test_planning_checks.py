@@ -11,10 +11,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from ow_lander.batch_check import BatchKinematics, BatchTerrainCheck
-from ow_lander.collision import ARM_LINKS, TerrainBlocks
-from ow_lander.config import PlannerConfig
-from ow_lander.description import (
+from ow_description.batch_check import BatchKinematics, BatchTerrainCheck
+from ow_description.collision import ARM_LINKS, TerrainBlocks
+from ow_description.description import (
     ANTENNA_JOINTS,
     ARM_JOINTS,
     DEFAULT_GROUND_Z,
@@ -23,12 +22,13 @@ from ow_lander.description import (
     STOWED,
     UNSTOWED,
 )
+from ow_description.model import LanderModel
+from ow_description.terrain import HeightMap
+from ow_lander.config import PlannerConfig
 from ow_lander.errors import PlanningError
-from ow_lander.model import LanderModel
-from ow_lander.operations import DOCK_CENTRE, DOCK_POUR_HEIGHT, Operations
-from ow_lander.planning import ArmPlanner, CheckContext
-from ow_lander.terrain import HeightMap
-from ow_lander.validity import _coarse_to_fine, densify, segment_steps
+from ow_lander.operations.planner import DOCK_CENTRE, DOCK_POUR_HEIGHT, Operations
+from ow_lander.planning.planner import ArmPlanner, CheckContext
+from ow_lander.planning.validity import _coarse_to_fine, densify, segment_steps
 
 
 @pytest.fixture(scope="module")

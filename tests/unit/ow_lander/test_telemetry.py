@@ -10,9 +10,10 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from ow_lander.description import ALL_JOINTS, URDF_PATH
+from ow_description.description import ALL_JOINTS, URDF_PATH
 from ow_lander.errors import ConfigError
-from ow_lander.telemetry import (
+from ow_lander.telemetry.config import TelemetryConfig
+from ow_lander.telemetry.joints import (
     PAN_TILT_JOINTS,
     TELEMETRY_ARM_JOINTS,
     RateGate,
@@ -20,7 +21,6 @@ from ow_lander.telemetry import (
     TelemetryBuilder,
     TelemetryError,
 )
-from ow_lander.telemetry_config import TelemetryConfig
 
 #: docs/owl_msgs.md, spelled out rather than derived.
 OCEANWATERS_ARM_ORDER = (

@@ -26,8 +26,8 @@ def test_the_configuration_and_the_bench_import_nothing_heavy():
     imported = _imported(
         "ow_mission.mission_config",
         "ow_mission.figures",  # bench/mission.py's imports
-        "ow_lander.telemetry_config",
-        "ow_lander.workspace",
+        "ow_lander.telemetry.config",
+        "ow_lander.operations.workspace",
     )
     assert not [name for name in HEAVY if name in imported]
 

@@ -13,8 +13,8 @@ import pybullet as pb
 import pytest
 
 import ow_mission.report as report_module
-from ow_lander.description import URDF_PATH
-from ow_lander.terrain import HeightMap
+from ow_description.description import URDF_PATH
+from ow_description.terrain import HeightMap
 from ow_mission.errors import FiguresError, ReplayError
 from ow_mission.figures import figures_status, make_figures, start_figures, wait_for_figures
 from ow_mission.figures import main as figures_main
@@ -609,7 +609,7 @@ def _drawn_together(joints: dict[str, float], terrain: HeightMap, camera: Camera
 def test_a_picture_without_shadows_is_the_robot_over_its_terrain_by_depth_pixel_for_pixel():
     """Without shadows the robot is drawn alone and laid over the terrain drawn once: the same
     pixels as both drawn together, with the scoop below the surface hidden by it."""
-    from ow_lander.description import SCOOP_BELOW_GROUND, UNSTOWED
+    from ow_description.description import SCOOP_BELOW_GROUND, UNSTOWED
     from ow_mission.render import SceneRenderer
 
     heights = np.full((60, 60), GROUND_Z)
@@ -665,7 +665,7 @@ def test_a_renderer_taking_terrain_after_terrain_does_not_grow():
 def test_a_shadowed_picture_after_a_terrain_change_keeps_the_pose():
     """The robot's client is emptied and the robot loaded again when its terrain changes: the
     pose set before comes back with it."""
-    from ow_lander.description import UNSTOWED
+    from ow_description.description import UNSTOWED
     from ow_mission.render import SceneRenderer
 
     camera = Camera((1.8, 0.0, GROUND_Z), 2.0, 35.0, -35.0, 200, 150)
@@ -686,8 +686,8 @@ def test_a_shadowed_picture_after_a_terrain_change_keeps_the_pose():
 def test_the_detector_is_replayed_from_joint_states_when_not_recorded():
     """A scoop tip descending at 25 mm/s that stops at the ground at t = 14 s: the paper's
     detector replayed on FK of the joint states fires within a few /tf periods of the stop."""
-    from ow_lander.description import UNSTOWED
-    from ow_lander.model import LanderModel
+    from ow_description.description import UNSTOWED
+    from ow_description.model import LanderModel
     from ow_mission.recording import Recording
 
     model = LanderModel()

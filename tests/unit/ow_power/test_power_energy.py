@@ -4,8 +4,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from ow_lander.description import EUROPA_GRAVITY, URDF_PATH
-from ow_lander.model import LanderModel
+from ow_description.description import EUROPA_GRAVITY, URDF_PATH
+from ow_description.model import LanderModel
 from ow_power.energy import ArmEnergyModel, EnergyBalance, dissipated_work_j
 from ow_power.errors import PowerError
 

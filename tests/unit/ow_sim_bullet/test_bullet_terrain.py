@@ -10,7 +10,7 @@ import textwrap
 import numpy as np
 import pybullet as pb
 
-from ow_lander.terrain import HeightMap
+from ow_description.terrain import HeightMap
 from ow_sim_bullet.bullet_terrain import BulletTerrain
 
 
@@ -33,7 +33,7 @@ def test_the_default_terrains_tiles_take_a_few_mb_not_a_texture_each():
     script = textwrap.dedent(
         """
         import numpy as np, pybullet as pb
-        from ow_lander.terrain import HeightMap
+        from ow_description.terrain import HeightMap
         from ow_sim_bullet.bullet_terrain import BulletTerrain
 
         def private_dirty_mb():

@@ -8,9 +8,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ow_lander.description import DEFAULT_GROUND_Z, GRINDER_LINK, SCOOP_LINK, URDF_PATH
-from ow_lander.shapes import link_shapes
-from ow_lander.terrain import HeightMap
+from ow_description.description import DEFAULT_GROUND_Z, GRINDER_LINK, SCOOP_LINK, URDF_PATH
+from ow_description.shapes import link_shapes
+from ow_description.terrain import HeightMap
 from ow_sim_bullet.carving import EMBEDDED_DEPTH, TerrainCarver, collision_surface_points
 from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.errors import ConfigError

@@ -13,7 +13,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from ow_lander.description import ALL_JOINTS, ARM_JOINTS, EUROPA_GRAVITY, STOWED, URDF_PATH
+from ow_description.description import ALL_JOINTS, ARM_JOINTS, EUROPA_GRAVITY, STOWED, URDF_PATH
 from ow_sim_bullet.config import PidGains, SimConfig
 from ow_sim_bullet.errors import CommandError
 from ow_sim_bullet.joint_control import JointController

@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-from ow_lander.description import DEFAULT_GROUND_Z
+from ow_description.description import DEFAULT_GROUND_Z
 from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.outputs import SimOutputs
 from ow_sim_bullet.runner import SimRunner

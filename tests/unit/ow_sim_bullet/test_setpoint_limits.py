@@ -11,8 +11,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from ow_lander.config import PlannerConfig
-from ow_lander.description import (
+from ow_description.description import (
     ARM_JOINTS,
     DEFAULT_GROUND_Z,
     EUROPA_GRAVITY,
@@ -20,12 +19,13 @@ from ow_lander.description import (
     UNSTOWED,
     URDF_PATH,
 )
+from ow_description.model import LanderModel
+from ow_description.terrain import HeightMap
+from ow_lander.config import PlannerConfig
 from ow_lander.errors import PlanningError
-from ow_lander.model import LanderModel
-from ow_lander.operations import Operations
-from ow_lander.planning import ArmPlanner
-from ow_lander.terrain import HeightMap
-from ow_lander.validity import START_LIMIT_TOLERANCE_RAD
+from ow_lander.operations.planner import Operations
+from ow_lander.planning.planner import ArmPlanner
+from ow_lander.planning.validity import START_LIMIT_TOLERANCE_RAD
 from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.errors import CommandError, TerrainSpecError
 from ow_sim_bullet.joint_control import ClippedSetpoint, JointController

@@ -9,7 +9,7 @@ import pytest
 import yaml
 from PIL import Image
 
-from ow_lander.description import DEFAULT_GROUND_Z, EUROPA_GRAVITY
+from ow_description.description import DEFAULT_GROUND_Z, EUROPA_GRAVITY
 from ow_sim_bullet.config import PID_YAML, SIM_YAML, SPEC_GAINS, PidGains, SimConfig
 from ow_sim_bullet.errors import CommandError, ConfigError, TerrainSpecError
 from ow_sim_bullet.terrains import WORKSPACE_CENTRE, europa, parse_terrain_spec

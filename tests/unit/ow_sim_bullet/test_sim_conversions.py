@@ -18,7 +18,7 @@ from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
 from ow_dem_bridge.api import Wrench
-from ow_lander.description import URDF_PATH
+from ow_description.description import URDF_PATH
 from ow_msgs.msg import JointStatesFlag, ToolState
 from ow_sim_bullet import wire
 from ow_sim_bullet.conversions import (

@@ -10,7 +10,7 @@ import pybullet as pb
 import pytest
 
 from ow_dem_bridge.api import ToolState, Wrench
-from ow_lander.description import (
+from ow_description.description import (
     ARM_JOINTS,
     SCOOP_ABOVE_GROUND,
     SCOOP_BELOW_GROUND,

@@ -22,7 +22,7 @@ import pinocchio as pin
 import pybullet as pb
 import pytest
 
-from ow_lander.description import ARM_JOINTS, SCOOP_ABOVE_GROUND, SCOOP_BELOW_GROUND, URDF_PATH
+from ow_description.description import ARM_JOINTS, SCOOP_ABOVE_GROUND, SCOOP_BELOW_GROUND, URDF_PATH
 from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.sim_core import BulletSim
 from ow_sim_bullet.terrains import flat

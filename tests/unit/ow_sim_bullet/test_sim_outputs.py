@@ -16,7 +16,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
-from ow_lander.description import DEFAULT_GROUND_Z, URDF_PATH
+from ow_description.description import DEFAULT_GROUND_Z, URDF_PATH
 from ow_msgs.msg import ToolState as ToolStateMsg
 from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.conversions import joint_frames

@@ -9,7 +9,7 @@ import pinocchio as pin
 import pytest
 
 from ow_dem_bridge.api import ToolState, Wrench
-from ow_lander.description import (
+from ow_description.description import (
     DEFAULT_GROUND_Z,
     EUROPA_GRAVITY,
     SCOOP_ABOVE_GROUND,
@@ -18,7 +18,7 @@ from ow_lander.description import (
     SCOOP_TIP_FRAME,
     URDF_PATH,
 )
-from ow_lander.terrain import HeightMap
+from ow_description.terrain import HeightMap
 from ow_sim_bullet.carving import TerrainCarver
 from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.joints import JointSample

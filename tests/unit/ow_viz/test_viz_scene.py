@@ -12,9 +12,9 @@ from std_msgs.msg import ColorRGBA
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker
 
-from ow_lander.description import ARM_JOINTS, SCOOP_TIP_FRAME, STOWED, UNSTOWED
-from ow_lander.model import LanderModel
-from ow_lander.terrain import HeightMap
+from ow_description.description import ARM_JOINTS, SCOOP_TIP_FRAME, STOWED, UNSTOWED
+from ow_description.model import LanderModel
+from ow_description.terrain import HeightMap
 from ow_viz.config import CONFIG_FILE, VizConfig
 from ow_viz.conversions import terrain_marker, trajectory_arrays
 from ow_viz.errors import ConfigError, SceneError

@@ -19,7 +19,7 @@ import numpy as np
 
 from ow_dem_bridge.api import ToolState, Wrench
 from ow_dem_bridge.errors import ConfigError
-from ow_lander.description import EUROPA_GRAVITY
+from ow_description.description import EUROPA_GRAVITY
 
 
 @dataclass(frozen=True)
@@ -27,7 +27,7 @@ class BalovnevParams:
     """Constants of the model (defaults: later OceanWATERS, Europa).
 
     Attributes:
-        gravity: m/s2 (Europa's, ``ow_lander.description.EUROPA_GRAVITY``).
+        gravity: m/s2 (Europa's, ``ow_description.description.EUROPA_GRAVITY``).
         width: m, bucket width.
         side_plate_length: m.
         blunt_edge_thickness: m.

@@ -13,7 +13,7 @@ from typing import Any
 
 from ow_dem_bridge.api import LOCAL_MODEL_NAMES
 from ow_dem_bridge.errors import ConfigError
-from ow_lander.params import Params
+from ow_runtime.params import Params
 
 #: The bridge node's parameter file (``src/ow_dem_bridge/config/dem.yaml``).
 CONFIG_FILE = Path(__file__).resolve().parents[2] / "config" / "dem.yaml"

@@ -65,7 +65,7 @@ class DemBridgeNode:
 
     def _tip(self, link: str) -> FloatArray:
         if link not in self._tips:
-            from ow_lander.description import URDF_PATH
+            from ow_description.description import URDF_PATH
 
             self._tips[link] = load_tool(URDF_PATH, link).tip
         return self._tips[link]
@@ -92,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     """Start the node; return a non-zero exit code on a configuration error."""
     import rospy
 
-    from ow_lander.init_node import init_node, spin
+    from ow_runtime.node import init_node, spin
 
     init_node("dem_bridge", argv=argv if argv is not None else sys.argv)
     try:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ow_runtime import errors as runtime_errors
+
 
 class DemBridgeError(Exception):
     """Base of every error raised by ow_dem_bridge."""
@@ -15,7 +17,7 @@ class QueryError(DemBridgeError):
     """A model was asked about a tool or material it has no data for."""
 
 
-class ConfigError(DemBridgeError):
+class ConfigError(DemBridgeError, runtime_errors.ConfigError):
     """A model or node parameter is missing or invalid (the message names the key)."""
 
 

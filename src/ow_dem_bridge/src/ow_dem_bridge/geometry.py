@@ -1,6 +1,6 @@
 """Tool geometry for the DEM, read from the lander URDF (the one source of truth).
 
-The collision shapes come from the workspace's one reader, :mod:`ow_lander.shapes`; this module
+The collision shapes come from the workspace's one reader, :mod:`ow_description.shapes`; this module
 only triangulates them. The scoop is a set of thin boxes (plates); the DEM sees each plate as a
 rectangle of two triangles on its mid-plane (the plates are 1-2 mm thick, far thinner than a
 particle). The grinder is a set of coaxial cylinders along the link x axis; the DEM sees the
@@ -19,8 +19,8 @@ import numpy as np
 
 from ow_dem_bridge.api import FloatArray
 from ow_dem_bridge.errors import GeometryError
-from ow_lander.errors import ModelError
-from ow_lander.shapes import link_shapes
+from ow_description.errors import ModelError
+from ow_description.shapes import link_shapes
 
 Triangle = tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float, float]]
 
@@ -114,7 +114,7 @@ def load_tool(urdf: Path, link: str, segments: int = 12) -> ToolGeometry:
     Raises:
         GeometryError: the link, its tip joint or its box and cylinder primitives are missing, a
             grinder cylinder is off the link x axis, or the URDF has a collision shape
-            :mod:`ow_lander.shapes` cannot read (a mesh, a sphere, malformed numbers).
+            :mod:`ow_description.shapes` cannot read (a mesh, a sphere, malformed numbers).
     """
     root = ET.parse(urdf).getroot()
     elem = _find_link(root, link, urdf)

@@ -35,7 +35,7 @@ from ow_dem_bridge.balovnev import BalovnevParams, balovnev_forces
 from ow_dem_bridge.errors import DemRunError
 from ow_dem_bridge.geometry import ToolGeometry, load_tool
 from ow_dem_bridge.table import FORCE_COLUMNS, ForceTable, Series, write_table
-from ow_lander.description import EUROPA_GRAVITY, URDF_PATH
+from ow_description.description import EUROPA_GRAVITY, URDF_PATH
 
 #: The YADE scenario script, run as a subprocess.
 YADE_SCRIPT = Path(__file__).with_name("yade_dig.py")
@@ -91,7 +91,7 @@ class Scenario:
         grinder_depths: m, plunge depths of the grinder runs.
         particle_radius: m, mean sphere radius (scaled up from the paper's 1.75 mm).
         radius_fuzz: relative spread of the radii (uniform).
-        gravity: m/s2 during the digs (Europa's, ``ow_lander.description.EUROPA_GRAVITY``).
+        gravity: m/s2 during the digs (Europa's, ``ow_description.description.EUROPA_GRAVITY``).
         dt_safety: time step as a fraction of the Rayleigh step.
         read_steps: DEM steps between two reads of the wrench.
         reads_per_row: reads averaged into one recorded sample.

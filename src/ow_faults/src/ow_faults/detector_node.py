@@ -15,11 +15,10 @@ from ow_faults.detection import FaultDetector, FaultStatus, action_group
 from ow_faults.errors import FaultError
 from ow_faults.listener_node import FaultsListener
 from ow_faults.stream_order import PacingStream
-from ow_lander.actions import ARM_ACTIONS
-from ow_lander.conversions import EVERY_MESSAGE
-from ow_lander.init_node import init_node, spin
-from ow_lander.status_timer_node import share_status_timer
 from ow_msgs.msg import JointStatesFlag
+from ow_runtime.names import ARM_ACTIONS, EVERY_MESSAGE, PAN_TILT_ACTIONS
+from ow_runtime.node import init_node, spin
+from ow_runtime.status_timer import share_status_timer
 from owl_msgs.msg import (
     ArmEndEffectorForceTorque,
     ArmFaultsStatus,
@@ -32,7 +31,7 @@ from owl_msgs.msg import (
 )
 
 #: The action servers whose goals make goal errors (arm_services and pan_tilt serve them).
-ACTIONS = (*ARM_ACTIONS, "PanTiltMoveJoints", "PanTiltMoveCartesian")
+ACTIONS = (*ARM_ACTIONS, *PAN_TILT_ACTIONS)
 #: s of wall time an input waits for the lock flags up to its stamp (ow_faults.stream_order).
 PACING_TIMEOUT_S = 5.0
 

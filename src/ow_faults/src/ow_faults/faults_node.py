@@ -11,14 +11,15 @@ from dynamic_reconfigure.encoding import encode_config
 
 from ow_faults.errors import FaultError
 from ow_faults.injection import FaultSet
+from ow_faults.protocol import CHANGES_TOPIC
 from ow_faults.server_node import CheckedServer
-from ow_lander.fault_reaction import CHANGES_TOPIC
-from ow_lander.init_node import init_node, spin
 from ow_msgs.msg import FaultChange
 from ow_msgs.srv import LockstepStatus
+from ow_runtime.names import STATUS_SERVICE
+from ow_runtime.node import init_node, spin
 
 #: The simulation's clock of record: its time now (ow_sim_bullet's sim node).
-SIM_STATUS_SERVICE = "/sim/lockstep_status"
+
 #: Where the server is, in the ``faults`` node or hosted by another: its services and topics.
 FAULTS_NAMESPACE = "/faults"
 
@@ -92,7 +93,7 @@ def hosted_server(params: Mapping[str, Any]) -> FaultsServer:
 def sim_time() -> rospy.Time:
     """The simulation's time now (its ``/sim/lockstep_status``), else this node's clock."""
     try:
-        reply = rospy.ServiceProxy(SIM_STATUS_SERVICE, LockstepStatus)()
+        reply = rospy.ServiceProxy(STATUS_SERVICE, LockstepStatus)()
     except (rospy.ROSException, rospy.ServiceException):
         return rospy.get_rostime()
     return rospy.Time.from_sec(reply.sim_time)

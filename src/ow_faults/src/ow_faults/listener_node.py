@@ -6,10 +6,10 @@ from collections.abc import Callable
 
 import rospy
 
+from ow_faults.change_follower_node import ChangeFollower
 from ow_faults.conversions import faults_from_msg
 from ow_faults.errors import FaultError
 from ow_faults.injection import FaultSet
-from ow_lander.faults_watch_node import ChangeFollower
 from ow_msgs.msg import FaultChange
 
 #: ``on_faults(faults, stamp_s)``: the injected faults from sim time ``stamp_s`` (s) on. It
@@ -19,7 +19,7 @@ FaultsCallback = Callable[[FaultSet, float], None]
 
 class FaultsListener:
     """Calls ``on_faults`` with the injected faults whenever the ``/faults`` server changes them,
-    then says it has applied them (:class:`~ow_lander.faults_watch_node.ChangeFollower`).
+    then says it has applied them (:class:`~ow_faults.change_follower_node.ChangeFollower`).
 
     Subscribes: ``/faults/changes`` (ow_msgs/FaultChange, latched: a node started after an
         injection learns it at once; none while no ``faults`` node runs).

@@ -2,7 +2,7 @@
 
 ``ArmServicesConfig.from_dict(rospy.get_param("~"))`` is the only place parameters enter; every
 other module receives the frozen dataclasses below. Missing keys keep their defaults; unknown keys
-and bad values are collected by :class:`~ow_lander.params.Params` and raised together as one
+and bad values are collected by :class:`~ow_runtime.params.Params` and raised together as one
 :class:`~ow_lander.errors.ConfigError` naming each key (a misspelt key gets the nearest known one).
 :data:`CONFIG_FILE` lists every key with its unit. Each attribute's range is the ``metadata`` of
 its field (:data:`POSITIVE`, ...): the keyword arguments of the :class:`Params` read.
@@ -16,10 +16,10 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from ow_lander.description import ARM_JOINTS, DEFAULT_GROUND_Z
+from ow_description.description import ARM_JOINTS, DEFAULT_GROUND_Z
+from ow_description.trajectory import Speed
 from ow_lander.errors import ConfigError
-from ow_lander.params import Params
-from ow_lander.trajectory import Speed
+from ow_runtime.params import Params
 
 #: The shipped parameter file; its ``arm_services:`` section is the node's private namespace.
 CONFIG_FILE = Path(__file__).resolve().parents[2] / "config" / "arm_services.yaml"

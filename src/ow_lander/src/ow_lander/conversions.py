@@ -13,21 +13,12 @@ import numpy as np
 from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from ow_lander.description import BASE_FRAME
-from ow_lander.errors import TerrainError
-from ow_lander.terrain import HeightMap
+from ow_description.description import BASE_FRAME
 from ow_msgs.msg import GroundDetectorSignal, GuardedMoveResult, Operation
 
 if TYPE_CHECKING:  # annotations only: reading messages does not load the model (pinocchio)
-    from ow_lander.execution import DetectorSignal, ExecutionResult
-    from ow_lander.trajectory import Trajectory
-
-#: ``queue_size`` of a subscriber that must process every message (joint states for the power
-#: integral and the arm's monitor, fault flags, ...): no receive limit. rospy drops all but the
-#: newest ``queue_size`` messages of each socket read, and a node lagging a simulation that runs
-#: many times faster than real time reads hundreds at once. rospy's -1 sets "no limit" even
-#: where another subscriber of the topic in the process set one (None would leave that).
-EVERY_MESSAGE = -1
+    from ow_description.trajectory import Trajectory
+    from ow_lander.execution.monitor import DetectorSignal, ExecutionResult
 
 
 _U32 = struct.Struct("<I")
@@ -63,20 +54,6 @@ def tf_message_stamps(data: bytes | memoryview) -> list[float]:
         msg = f"not a tf2_msgs/TFMessage: {count} transforms end at byte {offset} of {len(data)}"
         raise ValueError(msg)
     return stamps
-
-
-def height_map_from_msg(msg: Any) -> HeightMap:
-    """A :class:`HeightMap` from an ``ow_msgs/HeightMap``.
-
-    Raises:
-        TerrainError: the sizes do not match or the map is invalid.
-    """
-    rows, cols = int(msg.rows), int(msg.cols)
-    heights = np.asarray(msg.heights, dtype=np.float64)
-    if heights.size != rows * cols:
-        text = f"height map has {heights.size} heights for {rows} x {cols} cells"
-        raise TerrainError(text)
-    return HeightMap(heights.reshape(rows, cols), float(msg.resolution), msg.origin_x, msg.origin_y)
 
 
 def request_to_dict(request: Any) -> dict[str, Any]:

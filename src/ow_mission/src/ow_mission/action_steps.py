@@ -16,7 +16,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from ow_lander.workspace import shoulder_yaw_for
+from ow_lander.operations.workspace import shoulder_yaw_for
 from ow_mission.errors import ConfigError
 
 #: N and N m, ArmFindSurface's thresholds (the force ground detector's 10 N rise).

@@ -22,9 +22,10 @@ from typing import Any
 import numpy as np
 import yaml
 
-from ow_lander.params import Params, suggest
 from ow_mission.errors import ConfigError
 from ow_mission.mission_config import DEFAULT_MISSION_FILE, MissionConfig
+from ow_runtime.errors import ConfigError as AnyConfigError
+from ow_runtime.params import Params, suggest
 
 #: Mission keys that may be drawn from a range [low, high] (uniform).
 RANGE_KEYS = (
@@ -257,7 +258,7 @@ def sample_mission(config: CampaignConfig, k: int) -> dict[str, Any]:
     }
     try:
         MissionConfig.from_dict(mission)
-    except ConfigError as exc:
+    except AnyConfigError as exc:
         msg = f"mission {k} of the campaign is not valid: {exc}"
         raise ConfigError(msg) from exc
     return mission
@@ -320,7 +321,7 @@ def _check_mission(mission: Mapping[str, Any], where: str, p: Params) -> bool:
     ``where`` for each of its problems. True when valid."""
     try:
         MissionConfig.from_dict(mission)
-    except ConfigError as exc:
+    except AnyConfigError as exc:
         lines = [ln.strip().removeprefix("- ") for ln in str(exc).splitlines()]
         for line in lines[1:] or lines:
             p.problem(f"{where}: {line}")

@@ -36,6 +36,7 @@ from ow_mission.campaign import (
     sample_mission,
 )
 from ow_mission.errors import ConfigError
+from ow_runtime.errors import ConfigError as AnyConfigError
 
 RESULTS = "results.jsonl"
 #: s of wall time an interrupted campaign waits for its Ray tasks to stop their missions.
@@ -205,8 +206,8 @@ def summarise_run(run_dir: Path) -> dict[str, Any]:
     """What the campaign report needs of one run: its ``report.json`` numbers, and from its bags
     the tool's final position after each step and the ground-detection error (ground found
     minus the first terrain's height at the contact)."""
-    from ow_lander.description import GRINDER_TIP_FRAME, SCOOP_TIP_FRAME
-    from ow_lander.model import LanderModel
+    from ow_description.description import GRINDER_TIP_FRAME, SCOOP_TIP_FRAME
+    from ow_description.model import LanderModel
     from ow_mission.errors import ReplayError
     from ow_mission.mission import load_report
     from ow_mission.recording import read_recording
@@ -444,7 +445,7 @@ def main(argv: list[str] | None = None) -> int:
             only = parse_selection(selection, config.missions)
         raw_text = (path / "campaign.yaml" if path.is_dir() else path).read_text()
         summary = run_campaign(config, _pinned(raw_text, config), only)
-    except ConfigError as exc:
+    except AnyConfigError as exc:
         print(f"campaign: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

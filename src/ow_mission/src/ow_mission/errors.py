@@ -1,16 +1,14 @@
 """Exceptions of the ow_mission package. Each message names the bad value and the limit it broke."""
 
+from ow_runtime import errors as runtime_errors
+
 
 class OwMissionError(Exception):
     """Base class of every error raised by ow_mission."""
 
 
-class ConfigError(OwMissionError):
+class ConfigError(OwMissionError, runtime_errors.ConfigError):
     """A mission file or node configuration is missing, malformed or out of range."""
-
-
-class HarnessError(OwMissionError, RuntimeError):
-    """A master or node could not be started, or a wait timed out."""
 
 
 class ReplayError(OwMissionError):

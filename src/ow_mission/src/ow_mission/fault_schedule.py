@@ -22,7 +22,7 @@ from typing import Any
 
 from ow_faults.errors import FaultError
 from ow_faults.injection import FaultSet
-from ow_lander.params import suggest
+from ow_runtime.params import suggest
 
 #: The mission's steps, in order (``ow_mission.mission.STEPS``; a unit test checks they agree).
 MISSION_STEPS = (

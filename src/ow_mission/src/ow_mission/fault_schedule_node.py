@@ -13,10 +13,10 @@ from dynamic_reconfigure import DynamicReconfigureCallbackException
 from dynamic_reconfigure.client import Client
 from rosgraph_msgs.msg import Clock
 
-from ow_lander.fault_reaction import APPLIED_TOPIC, CHANGES_TOPIC
-from ow_lander.lockstep_node import LockstepClient, LockstepError, wait_until_held
+from ow_faults.protocol import APPLIED_TOPIC, CHANGES_TOPIC
 from ow_mission.fault_schedule import AppliedFault, ScheduledFault, ScheduleTimer
 from ow_msgs.msg import FaultChange, FaultChangeApplied
+from ow_runtime.lockstep_client import LockstepClient, LockstepError, wait_until_held
 
 #: s of wall time to wait for the ``/faults`` server when the runner starts.
 FAULTS_SERVER_TIMEOUT_S = 10.0
@@ -53,7 +53,7 @@ class FaultScheduleRunner:
     Args:
         schedule: the mission file's entries; none: no client, no subscription.
         publishers: the nodes publishing a topic, from the master (the followers are those of
-            ``/faults/applied``: :meth:`ow_mission.stack.RosMaster.publishers`).
+            ``/faults/applied``: :meth:`ow_bringup.stack.RosMaster.publishers`).
         lockstep: hold the simulation at each entry (the simulation offers a lockstep).
     """
 

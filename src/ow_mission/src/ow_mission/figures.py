@@ -25,8 +25,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeAlias
 
+from ow_bringup.stack import NODE_ENVIRONMENT
 from ow_mission.errors import FiguresError
-from ow_mission.stack import NODE_ENVIRONMENT
 
 #: The figures' process output, in the run directory.
 FIGURES_LOG = "figures.log"
@@ -52,7 +52,7 @@ def start_figures(run_dir: Path, renders: bool) -> FiguresProcess:
         The process (the caller need not wait for it).
     """
     run_dir = Path(run_dir)
-    # -OO: no docstrings in memory, as the stack's nodes (ow_mission.stack.NODE_PYTHON_OPTIMIZE).
+    # -OO: no docstrings in memory, as the stack's nodes (ow_bringup.stack.NODE_PYTHON_OPTIMIZE).
     command = [sys.executable, "-OO", "-m", "ow_mission.figures", str(run_dir)]
     if not renders:
         command.append("--no-renders")

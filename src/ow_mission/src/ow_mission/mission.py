@@ -14,13 +14,13 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ow_lander.description import STAMP_SLACK_S
+from ow_bringup.node_config import SERVE_FAULTS, STACK_NODES, stack_parameters
 from ow_mission.bag_prefetch import BagPrefetch
 from ow_mission.fault_schedule import AppliedFault
 from ow_mission.figures import FiguresProcess, start_figures
 from ow_mission.mission_config import MissionConfig
-from ow_mission.node_config import SERVE_FAULTS, STACK_NODES, stack_parameters
 from ow_power.config import BATTERY_TOPICS, TELEMETRY_TOPICS
+from ow_runtime.names import STAMP_SLACK_S
 
 
 @dataclass
@@ -466,7 +466,7 @@ def stack_processes(params: Mapping[str, dict[str, Any]], dig: str) -> list[Stac
                 node.package, node.executable, params[node.executable], *ready[node.executable]
             )
         )
-    processes.append(StackProcess("ow_mission", "monitors", monitors, services, topics))
+    processes.append(StackProcess("ow_bringup", "monitors", monitors, services, topics))
     return processes
 
 

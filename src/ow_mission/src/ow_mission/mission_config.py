@@ -15,17 +15,22 @@ from typing import Any
 
 import yaml
 
-from ow_lander.description import DEFAULT_GROUND_Z, MAX_GRIND_DEPTH, MAX_LENGTH, MAX_SCOOP_DEPTH
-from ow_lander.params import Params, suggest
+from ow_bringup.node_config import STACK_NODES
+from ow_description.description import (
+    DEFAULT_GROUND_Z,
+    MAX_GRIND_DEPTH,
+    MAX_LENGTH,
+    MAX_SCOOP_DEPTH,
+)
 from ow_mission.errors import ConfigError
 from ow_mission.fault_schedule import MISSION_STEPS, ScheduledFault, parse_schedule
-from ow_mission.node_config import STACK_NODES
+from ow_runtime.params import Params, suggest
 
 #: The default mission file shipped with the workspace.
 DEFAULT_MISSION_FILE: Path = Path(__file__).resolve().parents[2] / "config" / "mission.yaml"
 
 #: m, deepest a depth of the mission may be: each is ground by the grinder and then dug out by the
-#: scoop, so the services' smaller limit holds (one source: ow_lander.description).
+#: scoop, so the services' smaller limit holds (one source: ow_description.description).
 MAX_STEP_DEPTH = min(MAX_GRIND_DEPTH, MAX_SCOOP_DEPTH)
 
 #: How the mission is started.

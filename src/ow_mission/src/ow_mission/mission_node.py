@@ -1,7 +1,7 @@
 """``rosrun ow_mission mission [file.yaml]`` (and ``make demo``): the paper's sample-collection
 mission (section 3) through the real services, as an autonomy client runs it (see
 ``docs/mission.md``). It starts a private master and the stack configured by
-:mod:`ow_mission.node_config`, calls the steps of :data:`ow_mission.mission.STEPS`, and writes
+:mod:`ow_bringup.node_config`, calls the steps of :data:`ow_mission.mission.STEPS`, and writes
 ``runs/<timestamp>/``; a failed step stops it, keeping everything recorded up to then.
 """
 
@@ -19,11 +19,17 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 import ow_msgs.srv
-from ow_lander.init_node import init_node, signal_shutdown
-from ow_lander.lockstep_node import LockstepError, wait_until_held
+from ow_bringup.stack import (
+    HarnessError,
+    NodeProcess,
+    RosStack,
+    call_with_timeout,
+    peak_memory_mb,
+    private_master,
+    wait_until,
+)
 from ow_mission.action_client_node import ActionStepClient
 from ow_mission.bag_prefetch import BagPrefetch
-from ow_mission.errors import ConfigError
 from ow_mission.fault_schedule_node import FaultScheduleRunner
 from ow_mission.figures import FiguresProcess, tell_figures
 from ow_mission.mission import (
@@ -39,16 +45,10 @@ from ow_mission.mission import (
 )
 from ow_mission.mission_config import USAGE, WAIT_FIGURES, MissionConfig, config_from_argv
 from ow_mission.report import preload, report_reader
-from ow_mission.stack import (
-    HarnessError,
-    NodeProcess,
-    RosStack,
-    call_with_timeout,
-    peak_memory_mb,
-    private_master,
-    wait_until,
-)
 from ow_mission.stack_client_node import sim_clock, stands_at, wait_recorded
+from ow_runtime.errors import ConfigError as AnyConfigError
+from ow_runtime.lockstep_client import LockstepError, wait_until_held
+from ow_runtime.node import init_node, signal_shutdown
 
 
 class MissionRunner:
@@ -134,7 +134,7 @@ class MissionRunner:
                     prefetch = BagPrefetch(self.run_dir / "bags", report_reader(self.config))
                     stack.shutdown(last=("record",), delete_params=False)  # the bag: at SIGINT
                     signal_shutdown("mission done")  # leaves the master while it runs
-        except (HarnessError, ConfigError) as exc:
+        except (HarnessError, AnyConfigError) as exc:
             self.report.error = str(exc)
         self.report.wall_time_s = time.monotonic() - wall0
         self.figures = write_report(self.report, prefetch)
@@ -234,7 +234,7 @@ def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
     try:
         config = config_from_argv(args)
-    except ConfigError as exc:
+    except AnyConfigError as exc:
         print(f"mission: {exc}", file=sys.stderr)
         return 2
     if config is None:

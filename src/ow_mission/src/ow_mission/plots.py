@@ -17,9 +17,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ow_lander.ground_detection import GroundDetector
-from ow_lander.terrain import HeightMap
-from ow_lander.workspace import GRIND_PASS_SHIFT, shoulder_yaw_for
+from ow_description.terrain import HeightMap
+from ow_lander.execution.ground_detection import GroundDetector
+from ow_lander.operations.workspace import GRIND_PASS_SHIFT, shoulder_yaw_for
 from ow_mission.recording import Recording
 
 FloatArray = npt.NDArray[np.float64]
@@ -71,7 +71,7 @@ class TrenchGeometry:
     @classmethod
     def from_config(cls, config: Mapping[str, Any]) -> TrenchGeometry:
         """From ``report.json``'s ``config`` (x, y, trench_length, parallel), as the grind
-        service lays its passes out (``ow_lander.ground_operations.plan_grind``)."""
+        service lays its passes out (``ow_lander.operations.ground.plan_grind``)."""
         x, y = float(config["x"]), float(config["y"])
         yaw = shoulder_yaw_for(x, y, -math.pi, math.pi)
         heading = np.array([math.cos(yaw), math.sin(yaw)])
@@ -354,8 +354,8 @@ def detector_trace(
     """The detector's samples of the guarded move in [start_s, end_s] (s, sim).
 
     The recorded ``/arm/ground_detector`` samples when the bags have them; else the paper's
-    detector (:class:`ow_lander.ground_detection.GroundDetector`) replayed on the scoop tip's
-    position from forward kinematics of ``/joint_states`` (what tf gives the arm services),
+    detector (:class:`ow_lander.execution.ground_detection.GroundDetector`) replayed on the scoop
+    tip's position from forward kinematics of ``/joint_states`` (what tf gives the arm services),
     sampled at :data:`TF_RATE_HZ`, over the steady descent before the recorded contact. None when
     there is neither (no detector message and no ground found).
 
@@ -421,7 +421,7 @@ def detector_trace(
 
 def _tip_z(recording: Recording, start_s: float, end_s: float) -> tuple[FloatArray, FloatArray]:
     """(t s, scoop-tip z m) in [start_s, end_s], one joint state per /tf period."""
-    from ow_lander.model import LanderModel
+    from ow_description.model import LanderModel
 
     inside = np.flatnonzero((recording.joint_t >= start_s) & (recording.joint_t <= end_s))
     if len(inside) == 0:

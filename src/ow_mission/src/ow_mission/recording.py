@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ow_lander.terrain import HeightMap
+from ow_description.terrain import HeightMap
 from ow_mission.errors import ReplayError
 from ow_power.bagread import read_messages
 from ow_power.errors import BagReadError

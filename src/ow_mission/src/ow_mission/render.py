@@ -18,8 +18,8 @@ import numpy as np
 import numpy.typing as npt
 import pybullet as pb
 
-from ow_lander.description import URDF_PATH
-from ow_lander.terrain import HeightMap
+from ow_description.description import URDF_PATH
+from ow_description.terrain import HeightMap
 
 #: Colour of the terrain (RGBA): a plain pale ice; the heightfield's own checker texture is
 #: removed (TinyRenderer drew it as a hard-edged blue half-plane across the terrain).

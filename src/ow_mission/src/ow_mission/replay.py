@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ow_lander.terrain import HeightMap
+from ow_description.terrain import HeightMap
 from ow_mission.errors import ReplayError
 from ow_mission.recording import FloatArray, Recording
 

@@ -27,8 +27,8 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ow_bringup.node_config import stack_parameters
 from ow_mission.bag_prefetch import BagPrefetch
-from ow_mission.node_config import stack_parameters
 from ow_mission.recording import Recording, recording_from_messages
 from ow_mission.replay import ReplayRendering, render_pool, start_replay
 from ow_mission.report_files import Figures, markdown, write_report_files
@@ -247,8 +247,8 @@ def guarded_move_figure(
         "recorded on /arm/ground_detector"
         if trace.source == "recorded"
         else "replayed offline (no /arm/ground_detector in the bags): the paper's detector "
-        "(ow_lander.ground_detection.GroundDetector) on the scoop tip's z velocity from forward "
-        "kinematics of /joint_states at the /tf rate"
+        "(ow_lander.execution.ground_detection.GroundDetector) on the scoop tip's z velocity "
+        "from forward kinematics of /joint_states at the /tf rate"
     )
     detected = "none" if trace.contact_s is None else f"t = {trace.contact_s:.2f} s"
     result = "none" if trace.result_s is None else f"t = {trace.result_s:.2f} s"

@@ -11,9 +11,10 @@ from collections.abc import Mapping
 import rospy
 from std_srvs.srv import Trigger
 
-from ow_lander.lockstep_node import STATUS_SERVICE, LockstepError, simulation_status
 from ow_mission.mission import topics_behind
 from ow_msgs.srv import RecorderProgress
+from ow_runtime.lockstep_client import LockstepError, simulation_status
+from ow_runtime.names import STATUS_SERVICE
 
 #: The recorder's progress service (ow_power record node, ``~progress``).
 PROGRESS_SERVICE = "/record/progress"
@@ -66,7 +67,7 @@ def sim_clock(action: str, between_steps: bool = False) -> str | None:
 
 def stands_at(timeout_s: float) -> tuple[float, float]:
     """s (sim), where the simulation stands when held or paused, and the stamp of its newest
-    joint state (:class:`~ow_lander.lockstep_node.LockstepError` when it cannot say)."""
+    joint state (:class:`~ow_runtime.lockstep_client.LockstepError` when it cannot say)."""
     try:
         rospy.wait_for_service(STATUS_SERVICE, timeout=timeout_s)
     except rospy.ROSException as error:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ow_lander.terrain import HeightMap
+from ow_description.terrain import HeightMap
 from ow_mission.recording import Recording
 from ow_mission.replay import release_free_memory, render_pool
 

@@ -16,14 +16,14 @@ from sensor_msgs.msg import BatteryState as BatteryStateMsg
 from ow_faults.errors import FaultError
 from ow_faults.injection import FaultSet
 from ow_faults.listener_node import FaultsListener
-from ow_lander.conversions import EVERY_MESSAGE
-from ow_lander.init_node import init_node, spin
 from ow_msgs.msg import Power
 from ow_power.battery_faults import PowerFaults
 from ow_power.battery_feed import LoadFeed
 from ow_power.battery_messages import battery_messages
 from ow_power.config import BatteryConfig
 from ow_power.errors import ConfigError, PowerError
+from ow_runtime.names import EVERY_MESSAGE
+from ow_runtime.node import init_node, spin
 from owl_msgs.msg import BatteryRemainingUsefulLife, BatteryStateOfCharge, BatteryTemperature
 
 if TYPE_CHECKING:

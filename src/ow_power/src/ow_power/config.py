@@ -4,7 +4,7 @@ The nodes read their private namespace once (``rospy.get_param("~")``) and pass 
 ``config/power.yaml`` holds the defaults below under the node names ``power``, ``record`` and
 ``battery``, so ``rosparam load config/power.yaml`` configures all three (:data:`CONFIG_FILE`). A
 missing key takes its default; unknown keys, wrong types and values out of range are validated by
-the workspace's :class:`ow_lander.params.Params` and reported together in one
+the workspace's :class:`ow_runtime.params.Params` and reported together in one
 :class:`~ow_power.errors.ConfigError` naming each key (``power/max_dt_s``, ``record/prefix``).
 """
 
@@ -15,8 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ow_lander.params import Params
 from ow_power.errors import ConfigError
+from ow_runtime.params import Params
 
 #: The power, recorder and battery nodes' parameter file (``src/ow_power/config/power.yaml``):
 #: one section per node, ``power:``, ``record:`` and ``battery:``.
@@ -87,7 +87,7 @@ class PowerConfig:
     @classmethod
     def from_dict(cls, params: Mapping[str, Any]) -> PowerConfig:
         """Validate the node's private namespace (a section of :data:`CONFIG_FILE`; missing keys
-        take their defaults), every problem reported at once (:class:`~ow_lander.params.Params`).
+        take their defaults), every problem reported at once (:class:`~ow_runtime.params.Params`).
 
         Raises:
             ConfigError: naming each unknown key (with the nearest known one), wrong type or
@@ -131,7 +131,7 @@ class RecorderConfig:
     @classmethod
     def from_dict(cls, params: Mapping[str, Any]) -> RecorderConfig:
         """Validate the node's private namespace (a section of :data:`CONFIG_FILE`; missing keys
-        take their defaults), every problem reported at once (:class:`~ow_lander.params.Params`).
+        take their defaults), every problem reported at once (:class:`~ow_runtime.params.Params`).
 
         Raises:
             ConfigError: naming each unknown key (with the nearest known one), wrong type or
@@ -215,7 +215,7 @@ class BatteryConfig:
     @classmethod
     def from_dict(cls, params: Mapping[str, Any]) -> BatteryConfig:
         """Validate the node's private namespace (a section of :data:`CONFIG_FILE`; missing keys
-        take their defaults), every problem reported at once (:class:`~ow_lander.params.Params`).
+        take their defaults), every problem reported at once (:class:`~ow_runtime.params.Params`).
 
         Raises:
             ConfigError: naming each unknown key (with the nearest known one), wrong type or

@@ -5,11 +5,11 @@ the joint motors did, ``W = sum_k sum_i tau_i(k) * dtheta_i(k) * dt_k``, equals 
 arm's potential and kinetic energy plus what the joint damping and Coulomb friction dissipated,
 ``sum_k sum_i (d_i * dtheta_i(k)**2 + f_i * |dtheta_i(k)|) * dt_k`` (plus any work done on the
 terrain, zero in free space). The energies come from the workspace's one model of the lander,
-:class:`ow_lander.model.LanderModel` (pinocchio, from the URDF), the one the arm services use.
+:class:`ow_description.model.LanderModel` (pinocchio, from the URDF), the one the arm services use.
 
-Gravity is Europa's (``ow_lander.description.EUROPA_GRAVITY``, as in the simulation) unless given:
-pinocchio's default is the Earth's 9.81 m/s^2, which would overstate every potential-energy change
-7.5 times. Where the
+Gravity is Europa's (``ow_description.description.EUROPA_GRAVITY``, as in the simulation) unless
+given: pinocchio's default is the Earth's 9.81 m/s^2, which would overstate every potential-energy
+change 7.5 times. Where the
 simulation publishes the damping torque it applied (``/sim/joint_damping``), pass it as
 ``damping_effort``: the losses are then ``-sum damping_effort * dtheta * dt`` exactly, rather than
 the URDF's ``d * dtheta**2`` (the simulation's implicit damper gives a smaller torque on the light
@@ -27,12 +27,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ow_lander.description import EUROPA_GRAVITY, URDF_PATH
+from ow_description.description import EUROPA_GRAVITY, URDF_PATH
 from ow_power.errors import PowerError
 from ow_power.model import integrate_j
 
 if TYPE_CHECKING:
-    from ow_lander.model import LanderModel
+    from ow_description.model import LanderModel
 
 
 def dissipated_work_j(
@@ -93,9 +93,9 @@ class EnergyBalance:
 class ArmEnergyModel:
     """Potential and kinetic energy, damping and friction of the lander from its URDF.
 
-    The energies are those of :class:`ow_lander.model.LanderModel` (its pinocchio model). Joints
-    are matched by name; joints of the URDF that a joint state does not list are held at their
-    neutral position (0 rad), and joint-state names the URDF lacks are ignored.
+    The energies are those of :class:`ow_description.model.LanderModel` (its pinocchio model).
+    Joints are matched by name; joints of the URDF that a joint state does not list are held at
+    their neutral position (0 rad), and joint-state names the URDF lacks are ignored.
 
     Attributes:
         gravity: m/s^2, magnitude of gravity along -z of ``base_link``.
@@ -108,16 +108,16 @@ class ArmEnergyModel:
         """Load the model.
 
         Args:
-            urdf_path: URDF file; default the lander of ``ow_lander.description``.
+            urdf_path: URDF file; default the lander of ``ow_description.description``.
             gravity: m/s^2, along -z of ``base_link``; default Europa's
-                (``ow_lander.description.EUROPA_GRAVITY``, the simulation's default).
+                (``ow_description.description.EUROPA_GRAVITY``, the simulation's default).
 
         Raises:
             PowerError: the URDF cannot be loaded, or ``gravity`` is not finite.
         """
         # pinocchio is heavy: the import waits until a balance is wanted.
-        from ow_lander.errors import ModelError
-        from ow_lander.model import LanderModel
+        from ow_description.errors import ModelError
+        from ow_description.model import LanderModel
 
         if gravity is None:
             gravity = EUROPA_GRAVITY

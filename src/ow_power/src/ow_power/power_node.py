@@ -8,14 +8,14 @@ from collections.abc import Callable, Sequence
 import rospy
 from sensor_msgs.msg import JointState
 
-from ow_lander.batched_publisher_node import BatchedPublisher
-from ow_lander.conversions import EVERY_MESSAGE
-from ow_lander.init_node import init_node, spin
 from ow_msgs.msg import Power
 from ow_power.config import PowerConfig
 from ow_power.conversions import joint_state_fields, power_message
 from ow_power.errors import ConfigError, PowerError
 from ow_power.model import PowerIntegrator
+from ow_runtime.batched_publisher import BatchedPublisher
+from ow_runtime.names import EVERY_MESSAGE
+from ow_runtime.node import init_node, spin
 
 # Every joint state counts (a dropped one stretches the next interval of eq. 4), and a simulation
 # running many times faster than real time outpaces a node that is briefly descheduled. rospy

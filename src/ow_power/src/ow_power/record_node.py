@@ -14,11 +14,11 @@ from typing import Any
 import rospy
 from std_msgs.msg import String
 
-from ow_lander.init_node import init_node, signal_shutdown
 from ow_msgs.srv import RecorderProgress, RecorderProgressRequest, RecorderProgressResponse
 from ow_power.bagwriter import SplitBagWriter, record_time_ns
 from ow_power.config import RecorderConfig
 from ow_power.errors import ConfigError, RecorderError
+from ow_runtime.node import init_node, signal_shutdown
 
 #: s of wall time between two ``~status`` messages.
 STATUS_PERIOD_S = 1.0

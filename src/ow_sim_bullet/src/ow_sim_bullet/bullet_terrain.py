@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 import pybullet as pb
 
-from ow_lander.terrain import HeightMap
+from ow_description.terrain import HeightMap
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -1,8 +1,8 @@
 """The carvable terrain: the height map, its simulator surface, and the carving under the tools.
 
 The tools carve with points sampled on their collision shapes (:func:`collision_surface_points`,
-from the URDF's primitives as :mod:`ow_lander.shapes` reads them). :class:`TerrainCarver` owns the
-height map every part of the simulation reads (tool depth, ``/sim/terrain``) and keeps the
+from the URDF's primitives as :mod:`ow_description.shapes` reads them). :class:`TerrainCarver` owns
+the height map every part of the simulation reads (tool depth, ``/sim/terrain``) and keeps the
 simulator's surface (a :class:`CarvableSurface`, in the simulation Bullet heightfield tiles) in
 step with it. No pybullet here: the caller gives the tools' poses and forces.
 """
@@ -16,9 +16,9 @@ from typing import Protocol
 import numpy as np
 import numpy.typing as npt
 
-from ow_lander.errors import ModelError
-from ow_lander.shapes import link_shapes
-from ow_lander.terrain import HeightMap
+from ow_description.errors import ModelError
+from ow_description.shapes import link_shapes
+from ow_description.terrain import HeightMap
 from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.errors import ConfigError
 

@@ -10,8 +10,7 @@ import rospy
 from std_msgs.msg import Float64, Header
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
-from ow_lander.conversions import EVERY_MESSAGE
-from ow_lander.sim_clock_node import REFUSED
+from ow_runtime.names import EVERY_MESSAGE, REFUSED
 from ow_sim_bullet import conversions
 from ow_sim_bullet.config import CONTROLLER_NAMES
 from ow_sim_bullet.errors import CommandError
@@ -75,7 +74,7 @@ class SimCommands:
 
 def _send(publisher: rospy.Publisher, token: str, start: float | None) -> None:
     """A receipt: ``token`` and the sim time ``start`` (s) it holds from, or refused (the
-    prefix the receipts' reader, :mod:`ow_lander.sim_clock_node`, looks for)."""
+    prefix the receipts' reader, :mod:`ow_runtime.clock_client`, looks for)."""
     if start is None:
         token, start = REFUSED + token, 0.0
     stamp = rospy.Time(*conversions.stamp_parts(start))

@@ -2,7 +2,7 @@
 
 :func:`SimConfig.from_dict` takes the node's private parameters (the YAML files :data:`SIM_YAML`
 and :data:`PID_YAML`) and raises :class:`ConfigError` listing every bad key at once
-(:class:`ow_lander.params.Params`). Nothing else in the package reads parameters.
+(:class:`ow_runtime.params.Params`). Nothing else in the package reads parameters.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ow_lander.description import ALL_JOINTS, EUROPA_GRAVITY, STOWED
-from ow_lander.params import Params, suggest
+from ow_description.description import ALL_JOINTS, EUROPA_GRAVITY, STOWED
+from ow_runtime.params import Params, suggest
 from ow_sim_bullet.errors import ConfigError
 
 #: The package's shipped parameter files, loaded into the node's private namespace by
@@ -95,7 +95,7 @@ class PidGains:
     @classmethod
     def read(cls, params: Params) -> PidGains:
         """Read the gains from ``params``; problems are recorded for its root's
-        :meth:`~ow_lander.params.Params.finish` (unknown keys are the caller's to check)."""
+        :meth:`~ow_runtime.params.Params.finish` (unknown keys are the caller's to check)."""
         values = {}
         for name, unit in (("p", "N m/rad"), ("i", "N m/(rad s)"), ("d", "N m s/rad")):
             if not params.has(name):

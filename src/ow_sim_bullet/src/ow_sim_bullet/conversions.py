@@ -18,7 +18,7 @@ import numpy as np
 import pinocchio as pin
 from geometry_msgs.msg import TransformStamped
 
-from ow_lander.terrain import HeightMap
+from ow_description.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_sim_bullet.errors import CommandError
 from ow_sim_bullet.tool_tracking import FloatArray

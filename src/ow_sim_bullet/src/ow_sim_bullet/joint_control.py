@@ -28,7 +28,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ow_lander.description import ALL_JOINTS
+from ow_description.description import ALL_JOINTS
 from ow_sim_bullet.config import PidGains
 from ow_sim_bullet.errors import CommandError, ConfigError
 from ow_sim_bullet.joints import ClippedSetpoint

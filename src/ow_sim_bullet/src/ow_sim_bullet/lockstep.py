@@ -18,7 +18,7 @@ import heapq
 import math
 from dataclasses import dataclass, field
 
-from ow_lander.description import STAMP_SLACK_S
+from ow_runtime.names import STAMP_SLACK_S
 
 #: s of sim time: stamps this close count as equal (float and nanosecond rounding of stamps).
 EPSILON = STAMP_SLACK_S

@@ -8,7 +8,6 @@ from typing import Any
 
 import rospy
 
-from ow_lander.conversions import EVERY_MESSAGE
 from ow_msgs.msg import LockstepAck
 from ow_msgs.srv import (
     LockstepRegister,
@@ -16,6 +15,7 @@ from ow_msgs.srv import (
     LockstepStatus,
     LockstepStatusResponse,
 )
+from ow_runtime.names import EVERY_MESSAGE
 from ow_sim_bullet.runner import SimRunner
 
 

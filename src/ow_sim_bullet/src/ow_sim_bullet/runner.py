@@ -11,7 +11,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any, TypeVar
 
-from ow_lander.terrain import HeightMap
+from ow_description.terrain import HeightMap
 from ow_sim_bullet.errors import CommandError, SimError
 from ow_sim_bullet.lockstep import Lockstep
 from ow_sim_bullet.outputs import SimOutputs

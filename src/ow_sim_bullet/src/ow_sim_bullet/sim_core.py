@@ -30,9 +30,9 @@ import pybullet as pb
 
 from ow_dem_bridge.api import TerrainForceModel
 from ow_dem_bridge.models import make_model
+from ow_description.description import ARM_JOINTS, TERRAIN_CONTACT_LINKS, URDF_PATH
+from ow_description.terrain import HeightMap
 from ow_faults.injection import FaultSet
-from ow_lander.description import ARM_JOINTS, TERRAIN_CONTACT_LINKS, URDF_PATH
-from ow_lander.terrain import HeightMap
 from ow_sim_bullet.bullet_terrain import BulletTerrain
 from ow_sim_bullet.carving import TerrainCarver, collision_surface_points
 from ow_sim_bullet.config import PidGains, SimConfig

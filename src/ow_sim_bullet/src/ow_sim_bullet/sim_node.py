@@ -13,11 +13,11 @@ from std_srvs.srv import Trigger, TriggerResponse
 
 from ow_dem_bridge.api import REMOTE_MODEL_NAME
 from ow_dem_bridge.remote_node import make_remote_model
-from ow_lander.description import URDF_PATH
-from ow_lander.init_node import init_node, spin
-from ow_lander.terrain import HeightMap
+from ow_description.description import URDF_PATH
+from ow_description.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.srv import SetTerrain, SetTerrainResponse, StepSimulation, StepSimulationResponse
+from ow_runtime.node import init_node, spin
 from ow_sim_bullet import conversions, outputs, wire
 from ow_sim_bullet.commands_node import SimCommands
 from ow_sim_bullet.config import SimConfig

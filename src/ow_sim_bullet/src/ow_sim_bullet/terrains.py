@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from ow_lander.description import DEFAULT_GROUND_Z
-from ow_lander.errors import TerrainError
-from ow_lander.terrain import HeightMap
+from ow_description.description import DEFAULT_GROUND_Z
+from ow_description.errors import TerrainError
+from ow_description.terrain import HeightMap
 from ow_sim_bullet.errors import TerrainSpecError
 
 FloatArray = npt.NDArray[np.float64]

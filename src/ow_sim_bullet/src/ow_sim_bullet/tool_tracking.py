@@ -19,7 +19,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ow_dem_bridge.api import TerrainForceModel, ToolState, Wrench
-from ow_lander.description import GRINDER_LINK, GRINDER_TIP_FRAME, SCOOP_LINK, SCOOP_TIP_FRAME
+from ow_description.description import GRINDER_LINK, GRINDER_TIP_FRAME, SCOOP_LINK, SCOOP_TIP_FRAME
 from ow_sim_bullet.joints import JointSample
 from ow_sim_bullet.tool_forces import ToolForces, cross
 

@@ -2,7 +2,7 @@
 
 A trajectory names some joints and gives way points at times from its start. Between way points
 the set-point is a cubic Hermite spline when every point has velocities, else linear: the
-interpolation of :class:`ow_lander.trajectory.Spline`, the same the arm services check their
+interpolation of :class:`ow_description.trajectory.Spline`, the same the arm services check their
 tracking against. Before the first way point the set-point moves linearly from where it was when
 the trajectory started; after the last one it holds the last point.
 """
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ow_lander.trajectory import Spline
+from ow_description.trajectory import Spline
 from ow_sim_bullet.errors import CommandError
 
 FloatArray = npt.NDArray[np.float64]

@@ -16,7 +16,7 @@ import struct
 from collections.abc import Callable, Collection, Sequence
 from typing import Any
 
-from ow_lander.tcpros_write import write_or_drop
+from ow_runtime.tcpros_write import write_or_drop
 from ow_sim_bullet.conversions import JointFrame, quaternion_from_matrix, stamp_parts
 from ow_sim_bullet.tool_tracking import FloatArray, ToolSnapshot
 

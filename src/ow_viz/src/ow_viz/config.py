@@ -13,8 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ow_lander.description import SCOOP_TIP_FRAME
-from ow_lander.params import Params
+from ow_description.description import SCOOP_TIP_FRAME
+from ow_runtime.params import Params
 from ow_viz.errors import ConfigError
 
 #: The viz node's parameter file (``src/ow_viz/config/viz.yaml``), loaded whole as ``~``.

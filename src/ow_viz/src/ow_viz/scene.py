@@ -11,10 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ow_lander.errors import ModelError
-from ow_lander.model import LanderModel
-from ow_lander.terrain import HeightMap
-from ow_lander.trajectory import Spline
+from ow_description.errors import ModelError
+from ow_description.model import LanderModel
+from ow_description.terrain import HeightMap
+from ow_description.trajectory import Spline
 from ow_viz.errors import SceneError
 
 FloatArray = npt.NDArray[np.float64]
@@ -111,7 +111,7 @@ def tool_path(
     q_rest: FloatArray | None = None,
 ) -> FloatArray:
     """Positions (K, 3) m in base_link of ``frame`` along a joint trajectory, interpolated as the
-    simulation follows it (:class:`ow_lander.trajectory.Spline`).
+    simulation follows it (:class:`ow_description.trajectory.Spline`).
 
     Args:
         model: the lander model.

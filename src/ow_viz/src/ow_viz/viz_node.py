@@ -15,12 +15,12 @@ from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker
 
-from ow_lander.conversions import height_map_from_msg
-from ow_lander.description import BASE_FRAME, URDF_PATH
-from ow_lander.errors import TerrainError
-from ow_lander.init_node import init_node, spin
-from ow_lander.model import LanderModel
+from ow_description.conversions import height_map_from_msg
+from ow_description.description import BASE_FRAME, URDF_PATH
+from ow_description.errors import TerrainError
+from ow_description.model import LanderModel
 from ow_msgs.msg import GuardedMoveResult, HeightMap
+from ow_runtime.node import init_node, spin
 from ow_viz.config import VizConfig
 from ow_viz.conversions import (
     ground_marker,
@@ -65,7 +65,7 @@ class VizNode:
 
         Args:
             namespace: of the markers (``~``: the node's; ``/viz/`` when it is one component
-                of another node, :mod:`ow_mission.monitors_node`).
+                of another node, :mod:`ow_bringup.monitors_node`).
             joint_queue_size: of ``/joint_states`` (only the newest is needed; rospy keeps one
                 queue per topic and process, so a component beside one that takes every joint
                 state passes ``EVERY_MESSAGE``).

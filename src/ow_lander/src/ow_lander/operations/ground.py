@@ -1,0 +1,312 @@
+"""The operations that put a tool in the ground (paper section 3): the guarded move, grinding, and
+the linear and circular digs. No ROS.
+
+Each ``plan_*`` function takes the :class:`~ow_lander.operations.motions.ArmMotions` to plan with,
+the current configuration ``q: (9,) rad`` (pinocchio order), the terrain and the request's values,
+and returns an :class:`~ow_lander.operations.operation_plan.OperationPlan` whose segments in the
+ground have the speed class :attr:`~ow_description.trajectory.Speed.DIG` (the descent
+:attr:`~ow_description.trajectory.Speed.GUARDED`). Points are in base_link, m. Bad requests raise
+:class:`~ow_lander.errors.PlanningError` with a message naming the value and the limit.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ow_description.description import (
+    ARM_JOINTS,
+    GRINDER_LINK,
+    GRINDER_TIP_FRAME,
+    MAX_GRIND_DEPTH,
+    MAX_LENGTH,
+    MAX_SCOOP_DEPTH,
+    SCOOP_LINK,
+    SCOOP_TIP_FRAME,
+)
+from ow_description.terrain import HeightMap
+from ow_description.trajectory import PathSegment, Speed
+from ow_lander.errors import PlanningError
+from ow_lander.operations.motions import ArmMotions, align, rz
+from ow_lander.operations.operation_plan import OperationPlan, check_finite
+from ow_lander.operations.registry import OPERATIONS
+from ow_lander.operations.workspace import GRIND_PASS_SHIFT
+
+FloatArray = npt.NDArray[np.float64]
+
+#: m, height above the ground of the tool before it goes down and after it comes up.
+APPROACH_HEIGHT = 0.2
+#: rad, sweep of the circular dig (OceanWATERS: 2 pi / 3 of the distal pitch).
+CIRCULAR_SWEEP = 2 * math.pi / 3
+#: rad, (shoulder pitch, prox, dist, hand, scoop) of the reference configurations, aimed by the
+#: shoulder yaw: OceanWATERS' joint-space pre-configurations, used as tool orientations, IK seeds
+#: and via points.
+#: Dig linear: scoop yaw pi/2 (OceanWATERS) and the mouth pitched down into the cut by the first
+#: of these distal pitches that the arm can hold along the whole cut (OceanWATERS' 40 degree
+#: "dig in" attitude cannot be held along a cut at ground level by this arm).
+DIG_LINEAR_PITCHES = tuple(math.radians(d) for d in (-30, -45, -15, 0, -60))
+GRIND_POSE = (math.pi / 2, -math.pi / 2, 0.0, 4 * math.pi / 3, 0.0)
+GUARDED_POSE = (math.pi / 2, -math.pi / 2, 0.0, 0.0, 0.0)
+#: Circular dig references: parallel sweeps the distal pitch, perpendicular the hand yaw.
+CIRCULAR_PARALLEL_POSE = (math.pi / 2, -math.pi / 2, -19 * math.pi / 54, 0.0, math.pi / 2)
+CIRCULAR_PERPENDICULAR_POSE = (math.pi / 2, -math.pi / 2, 0.0, 0.0, 0.0)
+
+#: Request fields are float32: 0.1 arrives as 0.10000000149. Limits are compared with this slack.
+FLOAT32_SLACK = 1e-6
+
+
+def effective_parameters(operation: str, request: Mapping[str, Any]) -> dict[str, Any]:
+    """The request's values, replaced by the operation's defaults
+    (:attr:`~ow_lander.operations.registry.OperationSpec.defaults`) when ``use_defaults`` is
+    true."""
+    values = {k: v for k, v in request.items() if k not in ("use_defaults", "delete_prev_traj")}
+    if request.get("use_defaults"):
+        values.update(OPERATIONS[operation].defaults)
+    return values
+
+
+def _depth(depth: float, limit: float, tool: str) -> None:
+    if depth < 0:
+        msg = f"depth={depth:.3f} m must not be negative (it is measured down from the ground)"
+        raise PlanningError(msg)
+    if depth > limit + FLOAT32_SLACK:
+        msg = f"depth={depth:.3f} m is deeper than the {tool} can go (max {limit:.2f} m)"
+        raise PlanningError(msg)
+
+
+def _length(length: float) -> None:
+    if not 0 < length <= MAX_LENGTH + FLOAT32_SLACK:
+        msg = f"length={length:.3f} m must be in (0, {MAX_LENGTH}] m"
+        raise PlanningError(msg)
+
+
+def plan_guarded_move(
+    m: ArmMotions, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]
+) -> OperationPlan:
+    """Approach: the scoop tip to (x, y, z), its bottom turned against ``direction``; then
+    the guarded descent: a straight line of ``search_distance`` along -direction."""
+    p = effective_parameters("guarded_move", request)
+    check_finite(p, "x", "y", "z", "direction_x", "direction_y", "direction_z", "search_distance")
+    normal = np.array([p["direction_x"], p["direction_y"], p["direction_z"]], dtype=float)
+    if np.linalg.norm(normal) < 1e-6:
+        msg = "direction=(0, 0, 0) is a zero vector; give the surface normal, e.g. (0, 0, 1)"
+        raise PlanningError(msg)
+    normal /= np.linalg.norm(normal)
+    if p["search_distance"] <= 0:
+        msg = f"search_distance={p['search_distance']:.3f} m must be > 0"
+        raise PlanningError(msg)
+    target = np.array([p["x"], p["y"], p["z"]], dtype=float)
+    yaw = m.yaw(p["x"], p["y"])
+    start = m.start(q, terrain)
+    ctx = m.context(q, terrain)
+    reference = m.reference(yaw, GUARDED_POSE)
+    R0 = align(m.rotation(reference, q, SCOOP_TIP_FRAME), 2, -normal)
+    goal = m.planner.solve_ik(SCOOP_TIP_FRAME, target, R0, reference, ctx)
+    approach = m.approach(start, goal, reference, ctx)
+    dig = m.context(q, terrain, SCOOP_LINK)
+    end = target - normal * float(p["search_distance"])
+    # The search goes as deep as the arm can without the rest of it touching the terrain.
+    descent = m.cartesian(approach[-1], SCOOP_TIP_FRAME, end, lambda _: R0, dig, partial=True)
+    segments = [
+        PathSegment("approach", approach),
+        PathSegment("guarded", descent, Speed.GUARDED),
+    ]
+    return OperationPlan("guarded_move", segments, p)
+
+
+def plan_grind(
+    m: ArmMotions, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]
+) -> OperationPlan:
+    """Two grinder passes of ``length`` at ``depth`` below the ground, grinder vertical."""
+    p = effective_parameters("grind", request)
+    check_finite(p, "x", "y", "depth", "length", "ground_position")
+    _depth(p["depth"], MAX_GRIND_DEPTH, "grinder")
+    _length(p["length"])
+    x, y, ground = float(p["x"]), float(p["y"]), float(p["ground_position"])
+    yaw = m.yaw(x, y)
+    heading = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    right = np.array([math.sin(yaw), -math.cos(yaw), 0.0])
+    direction = heading if p["parallel"] else right
+    # The second pass is beside the first: to the left of a radial trench, further out from
+    # the lander for a trench across the arm.
+    shift = -right if p["parallel"] else heading
+    bottom = ground - float(p["depth"])
+    corners = [
+        np.array([x, y, bottom]),
+        np.array([x, y, bottom]) + direction * p["length"],
+        np.array([x, y, bottom]) + direction * p["length"] + shift * GRIND_PASS_SHIFT,
+        np.array([x, y, bottom]) + shift * GRIND_PASS_SHIFT,
+    ]
+    m.yaw(*corners[1][:2])
+    m.yaw(*corners[2][:2])
+    start = m.start(q, terrain)
+    reference = m.reference(yaw, GRIND_POSE)
+    R0 = m.rotation(reference, q, GRINDER_TIP_FRAME)
+
+    def vertical(point: FloatArray) -> FloatArray:
+        return rz(m.yaw(point[0], point[1]) - yaw) @ R0
+
+    above = corners[0] + [0.0, 0.0, APPROACH_HEIGHT + float(p["depth"])]
+    ctx = m.context(q, terrain)
+    dig = m.context(q, terrain, GRINDER_LINK)
+    goal = m.planner.solve_ik(GRINDER_TIP_FRAME, above, R0, reference, ctx)
+    segments = [PathSegment("approach", m.approach(start, goal, reference, ctx))]
+    arm = segments[0].waypoints[-1]
+    labels = ("descend", "pass_1", "shift", "pass_2")
+    for label, corner in zip(labels, corners, strict=True):
+        path = m.cartesian(arm, GRINDER_TIP_FRAME, corner, vertical, dig)
+        segments.append(PathSegment(label, path, Speed.DIG))
+        arm = path[-1]
+    exit_point = corners[3] + [0.0, 0.0, APPROACH_HEIGHT + float(p["depth"])]
+    path = m.cartesian(arm, GRINDER_TIP_FRAME, exit_point, vertical, dig)
+    segments.append(PathSegment("retract", path))
+    return OperationPlan("grind", segments, p)
+
+
+def plan_dig_linear(
+    m: ArmMotions, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]
+) -> OperationPlan:
+    """Rasping cut: the scoop dips in to ``depth``, cuts ``length`` radially, lifts out."""
+    p = effective_parameters("dig_linear", request)
+    check_finite(p, "x", "y", "depth", "length", "ground_position")
+    _depth(p["depth"], MAX_SCOOP_DEPTH, "scoop")
+    _length(p["length"])
+    x, y, ground = float(p["x"]), float(p["y"]), float(p["ground_position"])
+    yaw = m.yaw(x, y)
+    heading = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    bottom = ground - float(p["depth"])
+    cut_start = np.array([x, y, bottom])
+    cut_end = cut_start + heading * p["length"]
+    m.yaw(*cut_end[:2])
+    start = m.start(q, terrain)
+    errors = []
+    for pitch in DIG_LINEAR_PITCHES:
+        reference = m.reference(yaw, (math.pi / 2, -math.pi / 2, pitch, 0.0, math.pi / 2))
+        try:
+            segments = _linear_cut(m, q, terrain, start, reference, cut_start, cut_end, ground)
+        except PlanningError as error:
+            errors.append(str(error))
+            continue
+        p["scoop_pitch_deg"] = round(math.degrees(pitch))
+        return OperationPlan("dig_linear", segments, p)
+    msg = f"no scoop attitude can make this cut; with the preferred one: {errors[0]}"
+    raise PlanningError(msg)
+
+
+def _linear_cut(
+    m: ArmMotions,
+    q: FloatArray,
+    terrain: HeightMap | None,
+    start: FloatArray,
+    reference: FloatArray,
+    cut_start: FloatArray,
+    cut_end: FloatArray,
+    ground: float,
+) -> list[PathSegment]:
+    """Approach, lower, dip in, cut, lift out and retract, holding the scoop attitude of
+    ``reference`` (turned with the shoulder yaw)."""
+    yaw = float(reference[0])
+    heading = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    R0 = m.rotation(reference, q, SCOOP_TIP_FRAME)
+
+    def level(point: FloatArray) -> FloatArray:
+        return rz(m.yaw(point[0], point[1]) - yaw) @ R0
+
+    # Dip in and lift out at 45 degrees between 5 cm above the ground and the cut's depth.
+    rise = ground + 0.05 - float(cut_start[2])
+    entry = cut_start - heading * rise + [0.0, 0.0, rise]
+    above = entry + np.array([0.0, 0.0, APPROACH_HEIGHT - 0.05])
+    out = cut_end + heading * rise + [0.0, 0.0, rise]
+    ctx = m.context(q, terrain)
+    dig = m.context(q, terrain, SCOOP_LINK)
+    goal = m.planner.solve_ik(SCOOP_TIP_FRAME, above, R0, reference, ctx)
+    segments = [PathSegment("approach", m.approach(start, goal, reference, ctx))]
+    arm = segments[0].waypoints[-1]
+    steps = (
+        ("lower", entry, ctx, Speed.FREE),
+        ("dip_in", cut_start, dig, Speed.DIG),
+        ("cut", cut_end, dig, Speed.DIG),
+        ("lift_out", out, dig, Speed.DIG),
+        ("retract", out + np.array([0.0, 0.0, APPROACH_HEIGHT - 0.05]), dig, Speed.FREE),
+    )
+    for label, point, check, speed in steps:
+        path = m.cartesian(arm, SCOOP_TIP_FRAME, point, level, check)
+        segments.append(PathSegment(label, path, speed))
+        arm = path[-1]
+    return segments
+
+
+def plan_dig_circular(
+    m: ArmMotions, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]
+) -> OperationPlan:
+    """A 120 degree scoop sweep whose lowest point is at (x, y, ground - depth): about the
+    wrist (distal pitch) when parallel, about the hand (hand yaw) when perpendicular."""
+    p = effective_parameters("dig_circular", request)
+    check_finite(p, "x", "y", "depth", "ground_position")
+    _depth(p["depth"], MAX_SCOOP_DEPTH, "scoop")
+    x, y, ground = float(p["x"]), float(p["y"]), float(p["ground_position"])
+    yaw = m.yaw(x, y)
+    parallel = bool(p["parallel"])
+    joint = ARM_JOINTS.index("j_dist_pitch" if parallel else "j_hand_yaw")
+    reference = m.reference(
+        yaw, CIRCULAR_PARALLEL_POSE if parallel else CIRCULAR_PERPENDICULAR_POSE
+    )
+    # Centre the sweep on the scoop tip's lowest point, turning the way its mouth faces.
+    angles = np.linspace(-math.pi, math.pi, 361)
+    lowest, sign = _lowest(m, reference, q, joint, angles)
+    reference[joint] += lowest - sign * CIRCULAR_SWEEP / 2
+    reference_aimed = reference.copy()
+    target = np.array([x, y, ground - float(p["depth"])])
+    start = m.start(q, terrain)
+    ctx = m.context(q, terrain)
+    dig = m.context(q, terrain, SCOOP_LINK)
+    sweep = sign * np.linspace(0.0, CIRCULAR_SWEEP, 121)
+    R_hand = m.rotation(reference, q, "l_hand")
+    hand = m.position(reference, q, "l_hand")
+    arm = reference
+    for _ in range(4):
+        tips = []
+        for a in sweep:
+            swept = arm.copy()
+            swept[joint] += a
+            tips.append(m.position(swept, q, SCOOP_TIP_FRAME))
+        deepest = min(tips, key=lambda t: t[2])
+        error = target - deepest
+        if np.linalg.norm(error) < 5e-4:
+            break
+        hand = hand + error
+        R = rz(m.yaw(hand[0], hand[1]) - yaw) @ R_hand
+        arm = m.planner.solve_ik("l_hand", hand, R, arm, ctx)
+    else:
+        msg = f"cannot place the sweep's lowest point at ({x:.3f}, {y:.3f}, {target[2]:.3f}) m"
+        raise PlanningError(msg)
+    approach = m.approach(start, arm, reference_aimed, ctx)
+    arm = approach[-1]
+    end = arm.copy()
+    end[joint] += sweep[-1]
+    swept = m.planner.plan_joint_sweep(arm, end, dig)
+    segments = [PathSegment("approach", approach), PathSegment("sweep", swept, Speed.DIG)]
+    return OperationPlan("dig_circular", segments, p)
+
+
+def _lowest(
+    m: ArmMotions, reference: FloatArray, q: FloatArray, joint: int, angles: FloatArray
+) -> tuple[float, float]:
+    """(offset of ``joint`` putting the scoop tip lowest, direction of turning that moves
+    the tip the way the scoop's mouth faces there)."""
+    best = (np.inf, 0.0)
+    for a in angles:
+        arm = reference.copy()
+        arm[joint] += a
+        best = min(best, (float(m.position(arm, q, SCOOP_TIP_FRAME)[2]), float(a)))
+    arm = reference.copy()
+    arm[joint] += best[1]
+    ahead = arm.copy()
+    ahead[joint] += 1e-3
+    velocity = m.position(ahead, q, SCOOP_TIP_FRAME) - m.position(arm, q, SCOOP_TIP_FRAME)
+    mouth = m.rotation(arm, q, SCOOP_TIP_FRAME)[:, 0]
+    return best[1], 1.0 if float(velocity @ mouth) >= 0 else -1.0

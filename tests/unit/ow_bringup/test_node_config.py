@@ -1,0 +1,165 @@
+"""One configuration path: the shipped YAML files load into every node's configuration class,
+they hold the built-in defaults, and the mission's layers go on top of them."""
+
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+
+from ow_bringup.errors import ConfigError
+from ow_bringup.node_config import STACK_NODES, merge, shipped_parameters, stack_parameters
+from ow_faults.injection import FaultSet
+from ow_lander.config import ArmServicesConfig
+from ow_lander.telemetry.config import TelemetryConfig
+from ow_power.config import (
+    BATTERY_TOPICS,
+    TELEMETRY_TOPICS,
+    BatteryConfig,
+    PowerConfig,
+    RecorderConfig,
+)
+from ow_sim_bullet.config import SimConfig
+from ow_viz.config import VizConfig
+
+PARSERS: dict[str, Callable[[Any], Any]] = {
+    "sim": SimConfig.from_dict,
+    "arm_services": ArmServicesConfig.from_dict,
+    "power": PowerConfig.from_dict,
+    "battery": BatteryConfig.from_dict,
+    "record": RecorderConfig.from_dict,
+    "viz": VizConfig.from_dict,
+    "telemetry": TelemetryConfig.from_dict,
+    "faults": FaultSet.from_dict,
+    "detector": dict,  # no parameters
+}
+
+
+def test_every_stack_node_has_a_parser():
+    assert {n.executable for n in STACK_NODES} == set(PARSERS)
+
+
+@pytest.mark.parametrize("node", STACK_NODES, ids=lambda n: n.executable)
+def test_shipped_yaml_loads_and_holds_the_defaults(node):
+    parse = PARSERS[node.executable]
+    from_yaml = parse(shipped_parameters(node))
+    # The files say they list the built-in defaults: a stack started from them (launch files,
+    # mission) is configured exactly as a node started bare.
+    assert from_yaml == parse({})
+
+
+def test_layers_go_on_top_in_order_and_merge_nested_keys():
+    params = stack_parameters(
+        {"sim": {"terrain": "flat:-0.2"}, "arm_services": {"execution": {"settle_timeout_s": 3.0}}},
+        {"sim": {"terrain": "europa:3"}},
+    )
+    assert params["sim"]["terrain"] == "europa:3"
+    assert params["sim"]["gains"]["j_shou_yaw"]["p"] == pytest.approx(1000.0)  # pid.yaml kept
+    execution = params["arm_services"]["execution"]
+    assert execution["settle_timeout_s"] == 3.0
+    assert execution["ground_detector"] == "velocity"  # the rest of the section kept
+
+
+def test_an_unknown_node_is_refused_by_name():
+    with pytest.raises(ConfigError, match="no node 'arm' in the stack"):
+        stack_parameters({"arm": {"plan_and_execute": True}})
+
+
+def test_merge_replaces_lists_and_leaves_its_inputs_alone():
+    base = {"topics": ["/a"], "nested": {"x": 1, "y": 2}}
+    merged = merge(base, {"topics": ["/b"], "nested": {"y": 3}})
+    assert merged == {"topics": ["/b"], "nested": {"x": 1, "y": 3}}
+    assert base == {"topics": ["/a"], "nested": {"x": 1, "y": 2}}
+
+
+def test_the_mission_runs_in_lockstep_unless_node_params_turn_it_off(tmp_path):
+    from ow_mission.mission import node_parameters
+    from ow_mission.mission_config import MissionConfig
+
+    params = node_parameters(MissionConfig.from_dict({}), tmp_path)
+    assert params["sim"]["lockstep_clients"] == ["/arm_services"]
+    assert params["arm_services"]["execution"]["lockstep"] is True
+    assert params["arm_services"]["execution"]["lockstep_hold"] is True
+    off = {"node_params": {"arm_services": {"execution": {"lockstep": False}}}}
+    params = node_parameters(MissionConfig.from_dict(off), tmp_path)
+    # Else the simulation would wait at t = 0 for arm services that never register.
+    assert params["sim"]["lockstep_clients"] == []
+    assert params["arm_services"]["execution"]["lockstep_hold"] is False
+
+
+def test_the_mission_drains_the_state_topics_it_records_at_their_rates(tmp_path):
+    from ow_mission.mission import drain_periods, node_parameters
+    from ow_mission.mission_config import MissionConfig
+
+    periods = drain_periods(node_parameters(MissionConfig.from_dict({}), tmp_path))
+    assert periods["/joint_states"] == periods["/power"] == 0.0  # one per joint state
+    assert {periods[t] for t in TELEMETRY_TOPICS} == {0.1}  # the mission's 10 Hz
+    assert {periods[t] for t in BATTERY_TOPICS} == {1.0}  # one battery step per second
+    every = {"node_params": {"telemetry": {"rate_hz": 0}, "battery": {"update_rate_hz": 4.0}}}
+    periods = drain_periods(node_parameters(MissionConfig.from_dict(every), tmp_path))
+    assert {periods[t] for t in TELEMETRY_TOPICS} == {0.0}
+    assert {periods[t] for t in BATTERY_TOPICS} == {0.25}
+    # Only what is recorded is waited for.
+    fewer = {"node_params": {"record": {"topics": ["/joint_states"]}}}
+    assert drain_periods(node_parameters(MissionConfig.from_dict(fewer), tmp_path)) == {
+        "/joint_states": 0.0
+    }
+
+
+def test_a_topic_is_behind_until_it_has_a_message_within_its_period_of_the_end():
+    from ow_mission.mission import topics_behind
+
+    periods = {"/power": 0.0, "/arm_pose": 0.1, "/battery_state": 1.0}
+    end = 40.91
+    # The 0.35 s of /power a loaded run lost; the battery's last step at 40 s is its last.
+    latest = {"/power": 40.56, "/arm_pose": 40.9, "/battery_state": 40.0}
+    assert topics_behind(latest, end, periods) == {"/power": 40.56}
+    latest["/power"] = 40.91
+    assert topics_behind(latest, end, periods) == {}
+    latest["/arm_pose"] = 40.8  # 0.11 s before the end: the 40.9 s message is still to come
+    assert topics_behind(latest, end, periods) == {"/arm_pose": 40.8}
+    # A sum of 0.01 s steps is not exactly the end, and a topic never recorded is not waited for.
+    assert topics_behind({"/power": sum([0.01] * 4091)}, end, periods) == {}
+    assert topics_behind({}, end, periods) == {}
+
+
+def test_the_mission_runs_the_monitors_as_components_of_one_node(tmp_path):
+    from ow_mission.mission import MONITORS, node_parameters, stack_processes
+    from ow_mission.mission_config import MissionConfig
+
+    config = MissionConfig.from_dict({"node_params": {"telemetry": {"rate_hz": 0}}})
+    params = node_parameters(config, tmp_path)
+    processes = stack_processes(params, "circular")
+    assert [p.executable for p in processes] == ["record", "sim", "arm_services", "monitors"]
+    # Every node of the stack runs: on its own or as a component.
+    assert {p.executable for p in processes[:-1]} | set(MONITORS) == set(PARSERS)
+    monitors = processes[-1]
+    assert monitors.package == "ow_bringup"
+    # Each component's parameters in the node's namespace of its name (the detector has none);
+    # the fault server asked for.
+    assert monitors.params == {
+        **{c: params[c] for c in ("power", "battery", "telemetry", "viz", "faults")},
+        "serve_faults": True,
+    }
+    assert monitors.params["telemetry"]["rate_hz"] == 0
+    assert set(monitors.services) == {"/faults/set_parameters"}
+    assert set(monitors.topics) == {
+        "/power",
+        "/battery_state_of_charge",
+        "/robot_description",
+        "/arm_joint_positions",
+        "/system_faults_status",
+        "/faults/parameter_updates",
+    }
+    assert "/arm/dig_circular" in processes[2].services
+    assert "/arm/dig_linear" not in processes[2].services
+
+
+def test_faults_injected_from_the_start_go_to_the_monitors_fault_server(tmp_path):
+    from ow_mission.mission import node_parameters, stack_processes
+    from ow_mission.mission_config import MissionConfig
+
+    injected = {"ant_pan_joint_locked_failure": True}
+    config = MissionConfig.from_dict({"node_params": {"faults": injected}})
+    monitors = stack_processes(node_parameters(config, tmp_path), "linear")[-1]
+    assert monitors.params["serve_faults"] is True
+    assert monitors.params["faults"]["ant_pan_joint_locked_failure"] is True
