@@ -40,14 +40,14 @@ def free_port() -> int:
 #: ``PYTHONOPTIMIZE`` of the nodes a stack starts: 2 is ``python -OO``, without docstrings
 #: (and ``assert`` statements: the nodes' code uses them only to narrow types). A node's
 #: docstrings are never read while it runs, and they took ~20 MB of the mission's stack
-#: (docs/performance.md, tenth round).
+#: (docs/history/performance-journal.md, tenth round).
 NODE_PYTHON_OPTIMIZE = "2"
 #: What a stack adds to its nodes' environment: :data:`NODE_PYTHON_OPTIMIZE`; one thread for
 #: OpenBLAS (numpy's and scipy's): the nodes' matrices are a few rows, and a pool of BLAS threads
 #: per process did nothing for them but start, ~0.14 CPU-s per process importing numpy; and
 #: one glibc malloc arena: rospy's threads (one per connection) each took an arena of their
 #: own, and the stack's peak PSS during a mission was 474-476 MB with one against 494-500 MB
-#: (docs/performance.md, eleventh round). The nodes' threads take turns at the GIL anyway. A
+#: (docs/history/performance-journal.md, eleventh round). The nodes' threads take turns at the GIL anyway. A
 #: user's own setting wins.
 NODE_ENVIRONMENT = {
     "PYTHONOPTIMIZE": NODE_PYTHON_OPTIMIZE,

@@ -181,7 +181,7 @@ def release_free_memory() -> None:
     """Give the C heap's free pages back to the system (glibc's ``malloc_trim``; nothing where
     there is none). A render process calls it once its pybullet client is closed: it then
     waits for the rest of the report holding ~20 MB instead of the ~90 MB its client and
-    terrain reached (docs/performance.md, eighth round)."""
+    terrain reached (docs/history/performance-journal.md, eighth round)."""
     with contextlib.suppress(OSError, AttributeError):
         ctypes.CDLL("libc.so.6").malloc_trim(0)
 

@@ -435,7 +435,7 @@ def _figures_from_bags(
         nonlocal rendering, stills, pool
         # Two processes, not one for the stills and two for the replay: each holds a pybullet
         # client with the robot and the terrain (~65-90 MB), and the report's CPU after the
-        # fork is the same on two cores (docs/performance.md, eighth round).
+        # fork is the same on two cores (docs/history/performance-journal.md, eighth round).
         pool = render_pool(RENDER_PROCESSES)
         stills = start_stills(run_dir, document, recording, pool)
         rendering = start_replay_figure(run_dir, document, recording, pool)

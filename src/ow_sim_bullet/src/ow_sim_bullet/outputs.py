@@ -39,7 +39,7 @@ FLUSH_STEPS = 10
 #: is registered. The nodes a step waits for (:meth:`SimOutputs.flush` with ``only``) get them
 #: each time it waits, every ~8 steps in a mission; the others (the recorder, the monitors) need
 #: them only in order and whole: written to every subscriber at each wait, they cost the
-#: simulation 3.4 of its 8.7 CPU-s in a mission (docs/performance.md, eleventh round).
+#: simulation 3.4 of its 8.7 CPU-s in a mission (docs/history/performance-journal.md, eleventh round).
 LOCKSTEP_FLUSH_STEPS = 50
 
 #: (topic, message class) of every output written with the wire publishers, in the order their
