@@ -9,7 +9,8 @@ per metric: us a step of the core alone, of the core with its outputs, of Bullet
 ``stepSimulation`` within them and of every pybullet call within them (the part no change of our
 Python can remove: the rest is our Python); the real-time factor they allow. Where
 ``bench/sim_speed.py`` adds the node's ROS (sockets, threads) and the machine's other processes,
-this isolates the simulation's own code (docs/history/performance-journal.md, twelfth and thirteenth rounds).
+this isolates the simulation's own code (docs/history/performance-journal.md, twelfth and thirteenth
+rounds).
 
     source env.sh && python bench/sim_core.py
 """

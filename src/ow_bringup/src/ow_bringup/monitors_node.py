@@ -41,7 +41,7 @@ from ow_power import errors as power_errors
 from ow_power.battery_node import BatteryNode
 from ow_power.config import BatteryConfig, PowerConfig
 from ow_power.power_node import PowerNode
-from ow_runtime.names import EVERY_MESSAGE
+from ow_runtime.names import EVERY_MESSAGE, JOINT_STATES
 from ow_runtime.node import init_node, spin
 from ow_viz import errors as viz_errors
 from ow_viz.config import VizConfig
@@ -51,7 +51,7 @@ from ow_viz.viz_node import VizNode
 CONFIGURED = ("power", "battery", "telemetry", "viz", "faults")
 #: Topics a component takes every message of: rospy keeps one receive queue per topic in a
 #: process, and the last ``queue_size`` given wins; checked once all are made.
-EVERY_MESSAGE_TOPICS = ("/joint_states",)
+EVERY_MESSAGE_TOPICS = (JOINT_STATES,)
 
 ConfigErrors = (
     ConfigError,

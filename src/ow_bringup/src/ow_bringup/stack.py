@@ -47,8 +47,8 @@ NODE_PYTHON_OPTIMIZE = "2"
 #: per process did nothing for them but start, ~0.14 CPU-s per process importing numpy; and
 #: one glibc malloc arena: rospy's threads (one per connection) each took an arena of their
 #: own, and the stack's peak PSS during a mission was 474-476 MB with one against 494-500 MB
-#: (docs/history/performance-journal.md, eleventh round). The nodes' threads take turns at the GIL anyway. A
-#: user's own setting wins.
+#: (docs/history/performance-journal.md, eleventh round). The nodes' threads take turns at the
+#: GIL anyway. A user's own setting wins.
 NODE_ENVIRONMENT = {
     "PYTHONOPTIMIZE": NODE_PYTHON_OPTIMIZE,
     "OPENBLAS_NUM_THREADS": "1",

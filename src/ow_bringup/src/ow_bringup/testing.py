@@ -13,11 +13,11 @@ and in a test module::
     def stack(ros_stack):
         ros_stack.start_node("ow_sim_bullet", "sim", params={"real_time_factor": 0.0},
                              wait_for_services=["/sim/reset"])
-        ros_stack.start_node("ow_lander", "arm_services", wait_for_services=["/arm/unstow"])
+        ros_stack.start_node("ow_lander", "arm_services", wait_for_services=[ARM_UNSTOW])
         return ros_stack
 
     def test_unstow(stack):
-        response = stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
+        response = stack.service(ARM_UNSTOW, Unstow)(delete_prev_traj=False)
         assert response.success, response.message
 
 Fixtures:
@@ -61,6 +61,7 @@ from ow_bringup.testing_node import (
     unregister_endpoints,
     wait_connected,
 )
+from ow_runtime.names import ARM_UNSTOW, JOINT_STATES
 
 __all__ = [
     "FLAT",
@@ -128,8 +129,8 @@ def start_lander(ros_stack: RosStack) -> Callable[..., RosStack]:
         terrain: str = FLAT,
         sim: Mapping[str, Any] | None = None,
         arm: Mapping[str, Any] | None = None,
-        arm_services: Iterable[str] = ("/arm/unstow",),
-        sim_topics: Iterable[str] = ("/joint_states",),
+        arm_services: Iterable[str] = (ARM_UNSTOW,),
+        sim_topics: Iterable[str] = (JOINT_STATES,),
     ) -> RosStack:
         ros_stack.start_node(
             "ow_sim_bullet",

@@ -11,6 +11,7 @@ import rospy
 
 from ow_description.description import DEFAULT_GROUND_Z
 from ow_runtime.connections import wait_sending
+from ow_runtime.names import ARM_UNSTOW, TERRAIN_TOPIC
 from ow_runtime.node import init_node
 
 if TYPE_CHECKING:
@@ -92,14 +93,14 @@ def set_terrain(stack: RosStack, spec: str = FLAT, lift_arm: bool = False) -> No
     from ow_msgs.srv import SetTerrain, Unstow
 
     if lift_arm:
-        response = stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
+        response = stack.service(ARM_UNSTOW, Unstow)(delete_prev_traj=False)
         assert response.success, response.message
     reply = stack.service("/sim/set_terrain", SetTerrain)(terrain=spec)
     assert reply.success, reply.message
     if spec.startswith("flat:"):
         deadline = time.monotonic() + 10.0
         while True:  # the latched /sim/terrain carries the new, flat map ...
-            msg = rospy.wait_for_message("/sim/terrain", HeightMapMsg, timeout=10)
+            msg = rospy.wait_for_message(TERRAIN_TOPIC, HeightMapMsg, timeout=10)
             if np.ptp(height_map_from_msg(msg).heights) == 0.0:
                 break
             assert time.monotonic() < deadline, "/sim/terrain still shows the carved terrain"

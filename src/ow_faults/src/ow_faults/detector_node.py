@@ -16,7 +16,19 @@ from ow_faults.errors import FaultError
 from ow_faults.listener_node import FaultsListener
 from ow_faults.stream_order import PacingStream
 from ow_msgs.msg import JointStatesFlag
-from ow_runtime.names import ARM_ACTIONS, EVERY_MESSAGE, PAN_TILT_ACTIONS
+from ow_runtime.names import (
+    ARM_ACTIONS,
+    ARM_END_EFFECTOR_FORCE_TORQUE,
+    ARM_FAULTS_STATUS,
+    BATTERY_STATE_OF_CHARGE,
+    BATTERY_TEMPERATURE,
+    EVERY_MESSAGE,
+    FLAGS_JOINT_STATES,
+    PAN_TILT_ACTIONS,
+    PAN_TILT_FAULTS_STATUS,
+    POWER_FAULTS_STATUS,
+    SYSTEM_FAULTS_STATUS,
+)
 from ow_runtime.node import init_node, spin
 from ow_runtime.status_timer import share_status_timer
 from owl_msgs.msg import (
@@ -37,10 +49,10 @@ PACING_TIMEOUT_S = 5.0
 
 #: (topic, message class, FaultStatus field) of the four outputs.
 OUTPUTS = (
-    ("/arm_faults_status", ArmFaultsStatus, "arm"),
-    ("/pan_tilt_faults_status", PanTiltFaultsStatus, "pan_tilt"),
-    ("/power_faults_status", PowerFaultsStatus, "power"),
-    ("/system_faults_status", SystemFaultsStatus, "system"),
+    (ARM_FAULTS_STATUS, ArmFaultsStatus, "arm"),
+    (PAN_TILT_FAULTS_STATUS, PanTiltFaultsStatus, "pan_tilt"),
+    (POWER_FAULTS_STATUS, PowerFaultsStatus, "power"),
+    (SYSTEM_FAULTS_STATUS, SystemFaultsStatus, "system"),
 )
 
 
@@ -79,22 +91,22 @@ class DetectorNode:
             "detector",
         )
         rospy.Subscriber(
-            "/flags/joint_states", JointStatesFlag, self._on_flags, queue_size=EVERY_MESSAGE
+            FLAGS_JOINT_STATES, JointStatesFlag, self._on_flags, queue_size=EVERY_MESSAGE
         )
         rospy.Subscriber(
-            "/arm_end_effector_force_torque",
+            ARM_END_EFFECTOR_FORCE_TORQUE,
             ArmEndEffectorForceTorque,
             lambda m: self._update("on_wrist", m.header.stamp.to_sec(), stamp=m.header.stamp),
             queue_size=EVERY_MESSAGE,
         )
         rospy.Subscriber(
-            "/battery_state_of_charge",
+            BATTERY_STATE_OF_CHARGE,
             BatteryStateOfCharge,
             lambda m: self._update("on_soc", m.value, stamp=m.header.stamp),
             queue_size=EVERY_MESSAGE,
         )
         rospy.Subscriber(
-            "/battery_temperature",
+            BATTERY_TEMPERATURE,
             BatteryTemperature,
             lambda m: self._update("on_temperature", m.value, stamp=m.header.stamp),
             queue_size=EVERY_MESSAGE,

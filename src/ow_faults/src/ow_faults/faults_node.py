@@ -15,13 +15,13 @@ from ow_faults.protocol import CHANGES_TOPIC
 from ow_faults.server_node import CheckedServer
 from ow_msgs.msg import FaultChange
 from ow_msgs.srv import LockstepStatus
-from ow_runtime.names import STATUS_SERVICE
+from ow_runtime.names import FAULTS, STATUS_SERVICE
 from ow_runtime.node import init_node, spin
 
 #: The simulation's clock of record: its time now (ow_sim_bullet's sim node).
 
 #: Where the server is, in the ``faults`` node or hosted by another: its services and topics.
-FAULTS_NAMESPACE = "/faults"
+FAULTS_NAMESPACE = FAULTS
 
 
 class FaultsServer:

@@ -11,7 +11,12 @@ import rospy
 from ow_faults.change_follower_node import ChangeFollower
 from ow_lander.execution.fault_reaction import FaultReaction, group_of, watches_force
 from ow_msgs.msg import FaultChange
-from ow_runtime.names import EVERY_MESSAGE
+from ow_runtime.names import (
+    ARM_FAULTS_STATUS,
+    EVERY_MESSAGE,
+    PAN_TILT_FAULTS_STATUS,
+    SYSTEM_FAULTS_STATUS,
+)
 from owl_msgs.msg import ArmFaultsStatus, PanTiltFaultsStatus, SystemFaultsStatus
 
 #: Called with the sim time (s) of a new fault status, on rospy's thread.
@@ -39,9 +44,9 @@ class FaultWatch:
         self._on_status = on_status
         self.follower = ChangeFollower(self._on_change)
         for topic, cls, attribute in (
-            ("/arm_faults_status", ArmFaultsStatus, "arm"),
-            ("/pan_tilt_faults_status", PanTiltFaultsStatus, "pan_tilt"),
-            ("/system_faults_status", SystemFaultsStatus, "system"),
+            (ARM_FAULTS_STATUS, ArmFaultsStatus, "arm"),
+            (PAN_TILT_FAULTS_STATUS, PanTiltFaultsStatus, "pan_tilt"),
+            (SYSTEM_FAULTS_STATUS, SystemFaultsStatus, "system"),
         ):
             rospy.Subscriber(
                 topic, cls, self._on_bits, callback_args=attribute, queue_size=EVERY_MESSAGE

@@ -22,6 +22,14 @@ from ow_mission.errors import OwMissionError
 from ow_mission.plots import _pyplot
 from ow_power.bagread import read_messages
 from ow_power.errors import BagReadError
+from ow_runtime.names import (
+    ARM_FAULTS_STATUS,
+    BATTERY_REMAINING_USEFUL_LIFE,
+    BATTERY_STATE_OF_CHARGE,
+    PAN_TILT_FAULTS_STATUS,
+    POWER_FAULTS_STATUS,
+    SYSTEM_FAULTS_STATUS,
+)
 from owl_msgs.msg import (
     ArmFaultsStatus,
     PanTiltFaultsStatus,
@@ -31,13 +39,13 @@ from owl_msgs.msg import (
 
 #: The status topics, their message classes (whose constants name the bits), in report order.
 STATUS_TOPICS: dict[str, type] = {
-    "/arm_faults_status": ArmFaultsStatus,
-    "/pan_tilt_faults_status": PanTiltFaultsStatus,
-    "/power_faults_status": PowerFaultsStatus,
-    "/system_faults_status": SystemFaultsStatus,
+    ARM_FAULTS_STATUS: ArmFaultsStatus,
+    PAN_TILT_FAULTS_STATUS: PanTiltFaultsStatus,
+    POWER_FAULTS_STATUS: PowerFaultsStatus,
+    SYSTEM_FAULTS_STATUS: SystemFaultsStatus,
 }
-SOC_TOPIC = "/battery_state_of_charge"
-RUL_TOPIC = "/battery_remaining_useful_life"
+SOC_TOPIC = BATTERY_STATE_OF_CHARGE
+RUL_TOPIC = BATTERY_REMAINING_USEFUL_LIFE
 #: The topics :func:`fault_recording_from_messages` uses.
 TOPICS = (*STATUS_TOPICS, SOC_TOPIC, RUL_TOPIC)
 

@@ -17,6 +17,7 @@ from ow_faults.protocol import APPLIED_TOPIC, CHANGES_TOPIC
 from ow_mission.fault_schedule import AppliedFault, ScheduledFault, ScheduleTimer
 from ow_msgs.msg import FaultChange, FaultChangeApplied
 from ow_runtime.lockstep_client import LockstepClient, LockstepError, wait_until_held
+from ow_runtime.names import CLOCK, FAULTS
 
 #: s of wall time to wait for the ``/faults`` server when the runner starts.
 FAULTS_SERVER_TIMEOUT_S = 10.0
@@ -77,10 +78,10 @@ class FaultScheduleRunner:
         self._hold_s: float | None = None
         if not self.timer.schedule:
             return
-        self._client = Client("/faults", timeout=FAULTS_SERVER_TIMEOUT_S)
+        self._client = Client(FAULTS, timeout=FAULTS_SERVER_TIMEOUT_S)
         rospy.Subscriber(CHANGES_TOPIC, FaultChange, self._on_change, queue_size=None)
         rospy.Subscriber(APPLIED_TOPIC, FaultChangeApplied, self._on_applied, queue_size=None)
-        rospy.Subscriber("/clock", Clock, self._on_clock, queue_size=1)
+        rospy.Subscriber(CLOCK, Clock, self._on_clock, queue_size=1)
         if lockstep:
             self._lockstep = LockstepClient(LOCKSTEP_NAME)
             threading.Thread(target=self._hold_loop, name="faults", daemon=True).start()
@@ -214,7 +215,7 @@ class FaultScheduleRunner:
         def late() -> list[str]:
             version = self._version
             if version <= before:
-                return ["/faults"]
+                return [FAULTS]
             return [n for n in followers if self._acks.get(n, -1) < version]
 
         with self._followed:

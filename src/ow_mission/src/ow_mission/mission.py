@@ -15,12 +15,29 @@ from pathlib import Path
 from typing import Any
 
 from ow_bringup.node_config import SERVE_FAULTS, STACK_NODES, stack_parameters
+from ow_faults.protocol import CHANGES_TOPIC
 from ow_mission.bag_prefetch import BagPrefetch
 from ow_mission.fault_schedule import AppliedFault
 from ow_mission.figures import FiguresProcess, start_figures
 from ow_mission.mission_config import MissionConfig
 from ow_power.config import BATTERY_TOPICS, TELEMETRY_TOPICS
-from ow_runtime.names import STAMP_SLACK_S
+from ow_runtime.names import (
+    ARM_FAULTS_STATUS,
+    ARM_GROUND_DETECTOR,
+    ARM_JOINT_POSITIONS,
+    ARM_UNSTOW,
+    BATTERY_STATE_OF_CHARGE,
+    FLAGS_JOINT_STATES,
+    JOINT_STATES,
+    PAN_TILT_FAULTS_STATUS,
+    POWER,
+    POWER_FAULTS_STATUS,
+    ROBOT_DESCRIPTION,
+    SIM_RESUME,
+    STAMP_SLACK_S,
+    SYSTEM_FAULTS_STATUS,
+    TERRAIN_TOPIC,
+)
 
 
 @dataclass
@@ -188,7 +205,7 @@ def _dig(name: str, depth: Callable[[MissionConfig], float], below: bool) -> Ste
 
 
 STEPS: tuple[Step, ...] = (
-    Step("unstow", "/arm/unstow", "Unstow", lambda c, g: {}),
+    Step("unstow", ARM_UNSTOW, "Unstow", lambda c, g: {}),
     Step(
         "guarded_move",
         "/arm/guarded_move",
@@ -284,18 +301,18 @@ def write_report(
 
 #: The fault status topics (owl_msgs), in the report's order.
 FAULT_STATUS_TOPICS = (
-    "/arm_faults_status",
-    "/pan_tilt_faults_status",
-    "/power_faults_status",
-    "/system_faults_status",
+    ARM_FAULTS_STATUS,
+    PAN_TILT_FAULTS_STATUS,
+    POWER_FAULTS_STATUS,
+    SYSTEM_FAULTS_STATUS,
 )
 #: Fault topics the mission records: the status topics, the simulation's locked-joint flags and
 #: the /faults server's configuration and its stamped changes.
 FAULT_TOPICS = (
     *FAULT_STATUS_TOPICS,
-    "/flags/joint_states",
+    FLAGS_JOINT_STATES,
     "/faults/parameter_updates",
-    "/faults/changes",
+    CHANGES_TOPIC,
 )
 
 #: Hz of sim time, /clock in the mission's stack (the simulation's default: 100 Hz). Every
@@ -321,7 +338,7 @@ def drain_periods(params: Mapping[str, Mapping[str, Any]]) -> dict[str, float]:
     """
     telemetry_hz = float(params["telemetry"].get("rate_hz", 0.0))
     battery_hz = float(params["battery"].get("update_rate_hz", 1.0))
-    periods = {"/joint_states": 0.0, "/power": 0.0}
+    periods = {JOINT_STATES: 0.0, POWER: 0.0}
     periods.update(dict.fromkeys(TELEMETRY_TOPICS, 1.0 / telemetry_hz if telemetry_hz > 0 else 0.0))
     periods.update(dict.fromkeys(BATTERY_TOPICS, 1.0 / battery_hz))
     recorded = set(params["record"]["topics"])
@@ -392,9 +409,9 @@ def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str,
             # move's detector samples for the report's Figure 11.
             "topics": [
                 *shipped["record"]["topics"],
-                "/sim/terrain",
+                TERRAIN_TOPIC,
                 "/sim/scoop_tip_ground",
-                "/arm/ground_detector",
+                ARM_GROUND_DETECTOR,
                 *BATTERY_TOPICS,
                 # The faults: what the server holds, what the simulation flags, what the
                 # detector reports (the report's faults section).
@@ -418,14 +435,14 @@ MONITORS = ("power", "battery", "telemetry", "viz", "detector", "faults")
 #: What shows a node of the stack is ready: (services it offers, topics it publishes).
 READY: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "record": ((), ()),
-    "power": ((), ("/power",)),
-    "battery": ((), ("/battery_state_of_charge",)),
-    "sim": (("/sim/resume",), ("/joint_states",)),
+    "power": ((), (POWER,)),
+    "battery": ((), (BATTERY_STATE_OF_CHARGE,)),
+    "sim": ((SIM_RESUME,), (JOINT_STATES,)),
     "arm_services": ((), ()),  # and the services of the mission's steps
-    "viz": ((), ("/robot_description",)),
-    "telemetry": ((), ("/arm_joint_positions",)),
+    "viz": ((), (ROBOT_DESCRIPTION,)),
+    "telemetry": ((), (ARM_JOINT_POSITIONS,)),
     "faults": (("/faults/set_parameters",), ("/faults/parameter_updates",)),
-    "detector": ((), ("/system_faults_status",)),
+    "detector": ((), (SYSTEM_FAULTS_STATUS,)),
 }
 
 

@@ -48,6 +48,7 @@ from ow_mission.report import preload, report_reader
 from ow_mission.stack_client_node import sim_clock, stands_at, wait_recorded
 from ow_runtime.errors import ConfigError as AnyConfigError
 from ow_runtime.lockstep_client import LockstepError, wait_until_held
+from ow_runtime.names import CLOCK, JOINT_STATES
 from ow_runtime.node import init_node, signal_shutdown
 
 
@@ -154,9 +155,9 @@ class MissionRunner:
         init_node("mission", disable_signals=True)  # while they import (rospy's takes 0.1 s)
         for node, process in zip(nodes, processes, strict=True):
             stack.wait_ready(node, process.services, process.topics)
-        rospy.Subscriber("/clock", Clock, self._on_clock, queue_size=10)
+        rospy.Subscriber(CLOCK, Clock, self._on_clock, queue_size=10)
         if not self._hold:  # the lockstep says where each step starts and ends
-            rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=10)
+            rospy.Subscriber(JOINT_STATES, JointState, self._on_joints, queue_size=10)
         self._faults = FaultScheduleRunner(self.config.faults, stack.master.publishers, self._hold)
         # All connected before the first state is published: equal runs record equal messages.
         if not wait_until(lambda: not stack.master.unconnected(), 10.0):

@@ -19,13 +19,14 @@ from ow_description.terrain import HeightMap
 from ow_mission.errors import ReplayError
 from ow_power.bagread import read_messages
 from ow_power.errors import BagReadError
+from ow_runtime.names import ARM_GROUND_DETECTOR, GUARDED_MOVE_RESULT, JOINT_STATES, TERRAIN_TOPIC
 
 FloatArray = npt.NDArray[np.float64]
 
-JOINT_STATES_TOPIC = "/joint_states"
-TERRAIN_TOPIC = "/sim/terrain"
-DETECTOR_TOPIC = "/arm/ground_detector"
-GUARDED_RESULT_TOPIC = "/guarded_move_result"
+JOINT_STATES_TOPIC = JOINT_STATES
+TERRAIN_TOPIC = TERRAIN_TOPIC
+DETECTOR_TOPIC = ARM_GROUND_DETECTOR
+GUARDED_RESULT_TOPIC = GUARDED_MOVE_RESULT
 #: The topics :func:`recording_from_messages` uses.
 TOPICS = (JOINT_STATES_TOPIC, TERRAIN_TOPIC, DETECTOR_TOPIC, GUARDED_RESULT_TOPIC)
 

@@ -16,8 +16,21 @@ from typing import Any
 
 from rosbags.highlevel import AnyReader
 
+from ow_faults.protocol import CHANGES_TOPIC
 from ow_mission.mission import FAULT_STATUS_TOPICS
 from ow_power.bagwriter import starts_with_header
+from ow_runtime.names import (
+    ARM_END_EFFECTOR_FORCE_TORQUE,
+    BATTERY_REMAINING_USEFUL_LIFE,
+    BATTERY_STATE_OF_CHARGE,
+    BATTERY_TEMPERATURE,
+    FLAGS_JOINT_STATES,
+    JOINT_STATES,
+    POWER,
+    SIM_GRINDER_WRENCH,
+    SIM_SCOOP_WRENCH,
+    TERRAIN_TOPIC,
+)
 
 #: report.json entries that measure the machine, not the run.
 WALL_CLOCK_KEYS = frozenset(
@@ -36,17 +49,17 @@ WALL_CLOCK_KEYS = frozenset(
 #: battery and the fault telemetry (the detector's status, stamped with the sim time of what
 #: changed it; the flags).
 TOPICS = (
-    "/joint_states",
-    "/sim/terrain",
-    "/power",
-    "/arm_end_effector_force_torque",
-    "/sim/scoop_wrench",
-    "/sim/grinder_wrench",
-    "/battery_state_of_charge",
-    "/battery_remaining_useful_life",
-    "/battery_temperature",
-    "/flags/joint_states",
-    "/faults/changes",
+    JOINT_STATES,
+    TERRAIN_TOPIC,
+    POWER,
+    ARM_END_EFFECTOR_FORCE_TORQUE,
+    SIM_SCOOP_WRENCH,
+    SIM_GRINDER_WRENCH,
+    BATTERY_STATE_OF_CHARGE,
+    BATTERY_REMAINING_USEFUL_LIFE,
+    BATTERY_TEMPERATURE,
+    FLAGS_JOINT_STATES,
+    CHANGES_TOPIC,
     *FAULT_STATUS_TOPICS,
 )
 

@@ -37,11 +37,12 @@ from ow_power.bagread import read_messages
 from ow_power.config import PowerConfig
 from ow_power.errors import AnalysisError, BagReadError, PowerError
 from ow_power.model import PowerIntegrator, intervals_s
+from ow_runtime.names import ARM_OPERATION, GUARDED_MOVE_RESULT, JOINT_STATES, POWER
 
-POWER_TOPIC = "/power"
-JOINT_STATES_TOPIC = "/joint_states"
-OPERATION_TOPIC = "/arm/operation"
-GUARDED_MOVE_RESULT_TOPIC = "/guarded_move_result"
+POWER_TOPIC = POWER
+JOINT_STATES_TOPIC = JOINT_STATES
+OPERATION_TOPIC = ARM_OPERATION
+GUARDED_MOVE_RESULT_TOPIC = GUARDED_MOVE_RESULT
 #: The topics :func:`analyze_messages` uses.
 TOPICS = (POWER_TOPIC, JOINT_STATES_TOPIC, OPERATION_TOPIC, GUARDED_MOVE_RESULT_TOPIC)
 

@@ -8,8 +8,8 @@ with :mod:`ow_power.bagdecode`'s faster decoders) and returns them per topic::
 
     from ow_power.bagread import read_messages
 
-    messages = read_messages(sorted(Path("runs/today/bags").glob("*.bag")), ["/power"])
-    for bag_ns, msg in messages["/power"]:
+    messages = read_messages(sorted(Path("runs/today/bags").glob("*.bag")), [POWER])
+    for bag_ns, msg in messages[POWER]:
         print(bag_ns, msg.total_power)
 
 Each topic's messages are in bag-time order; messages at the same bag time keep the order of the

@@ -16,6 +16,27 @@ from pathlib import Path
 from typing import Any
 
 from ow_power.errors import ConfigError
+from ow_runtime.names import (
+    ARM_END_EFFECTOR_FORCE_TORQUE,
+    ARM_JOINT_ACCELERATIONS,
+    ARM_JOINT_POSITIONS,
+    ARM_JOINT_TORQUES,
+    ARM_JOINT_VELOCITIES,
+    ARM_OPERATION,
+    ARM_POSE,
+    BATTERY_REMAINING_USEFUL_LIFE,
+    BATTERY_STATE_OF_CHARGE,
+    BATTERY_TEMPERATURE,
+    GUARDED_MOVE_RESULT,
+    JOINT_STATES,
+    PAN_TILT_POSITION,
+    POWER,
+    ROBOT_DESCRIPTION,
+    SIM_GRINDER_WRENCH,
+    SIM_SCOOP_WRENCH,
+    TF,
+    TF_STATIC,
+)
 from ow_runtime.params import Params
 
 #: The power, recorder and battery nodes' parameter file (``src/ow_power/config/power.yaml``):
@@ -24,38 +45,38 @@ CONFIG_FILE = Path(__file__).resolve().parents[2] / "config" / "power.yaml"
 
 #: OceanWATERS' telemetry made from the joint states (owl_msgs; the ow_lander telemetry node).
 TELEMETRY_TOPICS: tuple[str, ...] = (
-    "/arm_joint_positions",
-    "/arm_joint_velocities",
-    "/arm_joint_accelerations",
-    "/arm_joint_torques",
-    "/arm_pose",
-    "/pan_tilt_position",
+    ARM_JOINT_POSITIONS,
+    ARM_JOINT_VELOCITIES,
+    ARM_JOINT_ACCELERATIONS,
+    ARM_JOINT_TORQUES,
+    ARM_POSE,
+    PAN_TILT_POSITION,
 )
 #: The battery node's topics, one message each per battery period.
 BATTERY_TOPICS: tuple[str, ...] = (
-    "/battery_state_of_charge",
-    "/battery_remaining_useful_life",
-    "/battery_temperature",
+    BATTERY_STATE_OF_CHARGE,
+    BATTERY_REMAINING_USEFUL_LIFE,
+    BATTERY_TEMPERATURE,
     "/battery_state",
 )
 
 #: Topics the recorder records by default (missing ones are simply absent from the bag).
 DEFAULT_RECORD_TOPICS: tuple[str, ...] = (
-    "/power",
-    "/joint_states",
-    "/guarded_move_result",
-    "/arm/operation",
-    "/sim/scoop_wrench",
-    "/sim/grinder_wrench",
+    POWER,
+    JOINT_STATES,
+    GUARDED_MOVE_RESULT,
+    ARM_OPERATION,
+    SIM_SCOOP_WRENCH,
+    SIM_GRINDER_WRENCH,
     "/sim/joint_damping",
     # OceanWATERS' telemetry (owl_msgs; the ow_lander telemetry node, the sim's wrist F/T).
     *TELEMETRY_TOPICS,
-    "/arm_end_effector_force_torque",
+    ARM_END_EFFECTOR_FORCE_TORQUE,
     # For viewers (RViz through `rosbag play --clock`, Foxglove, Lichtblick): the frames, the
     # robot and the markers of ow_viz; the latched ones are repeated in every file of a run.
-    "/tf",
-    "/tf_static",
-    "/robot_description",
+    TF,
+    TF_STATIC,
+    ROBOT_DESCRIPTION,
     "/viz/terrain",
     "/viz/tool_path",
     "/viz/ground_point",

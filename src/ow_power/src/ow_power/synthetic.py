@@ -21,6 +21,7 @@ from rosbags.typesys.store import Typestore
 from ow_power.bagwriter import SplitBagWriter
 from ow_power.config import PowerConfig
 from ow_power.model import PowerIntegrator
+from ow_runtime.names import ARM_OPERATION, JOINT_STATES, POWER
 
 #: Source of the ow_msgs message definitions (the workspace's ``src/ow_msgs/msg``).
 OW_MSGS_DIR = Path(__file__).resolve().parents[3] / "ow_msgs" / "msg"
@@ -120,7 +121,7 @@ def write_run(
         for k in range(n + 1):
             if k == 0:
                 put(
-                    "/arm/operation",
+                    ARM_OPERATION,
                     "ow_msgs/msg/Operation",
                     header=messages.header(t_ns),
                     id=op_id,
@@ -135,7 +136,7 @@ def write_run(
                 if k > 0:
                     t_ns += period_ns
                 put(
-                    "/joint_states",
+                    JOINT_STATES,
                     "sensor_msgs/msg/JointState",
                     header=messages.header(t_ns),
                     name=list(joints),
@@ -146,7 +147,7 @@ def write_run(
                 if with_power:
                     s = integrator.update(t_ns * 1e-9, joints, velocity, effort)
                     put(
-                        "/power",
+                        POWER,
                         "ow_msgs/msg/Power",
                         header=messages.header(t_ns),
                         name=list(s.names),
@@ -163,7 +164,7 @@ def write_run(
                     )
             if k == n:
                 put(
-                    "/arm/operation",
+                    ARM_OPERATION,
                     "ow_msgs/msg/Operation",
                     header=messages.header(t_ns),
                     id=op_id,

@@ -11,7 +11,7 @@ from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
 from ow_runtime.lockstep_client import LockstepError, simulation_status
-from ow_runtime.names import ALREADY_PAUSED, REFUSED
+from ow_runtime.names import ALREADY_PAUSED, REFUSED, SIM_RESUME
 
 
 class TrajectoryDeliveryError(Exception):
@@ -116,7 +116,7 @@ class SimClock:
         """Call ``/sim/<action>``; its response, or None when the simulation has none or the
         call failed (logged)."""
         if self._offered is None:
-            self._offered = self._offers(("/sim/pause", "/sim/resume"))
+            self._offered = self._offers(("/sim/pause", SIM_RESUME))
         if not self._offered:
             return None
         try:

@@ -51,3 +51,46 @@ ARM_ACTIONS = (
 )
 #: The antenna mast's actions (``rosrun ow_lander pan_tilt``).
 PAN_TILT_ACTIONS = ("PanTiltMoveJoints", "PanTiltMoveCartesian")
+
+
+# Topic and service names that more than one package speaks.
+
+# ROS's conventional names, as the stack uses them.
+CLOCK = "/clock"
+JOINT_STATES = "/joint_states"
+TF = "/tf"
+TF_STATIC = "/tf_static"
+ROBOT_DESCRIPTION = "/robot_description"
+
+# OceanWATERS' telemetry and fault topics (owl_msgs), published by ow_lander's telemetry, ow_power's
+# battery, ow_faults' detector and the simulation's wrist sensor.
+ARM_JOINT_POSITIONS = "/arm_joint_positions"
+ARM_JOINT_VELOCITIES = "/arm_joint_velocities"
+ARM_JOINT_ACCELERATIONS = "/arm_joint_accelerations"
+ARM_JOINT_TORQUES = "/arm_joint_torques"
+ARM_POSE = "/arm_pose"
+PAN_TILT_POSITION = "/pan_tilt_position"
+ARM_END_EFFECTOR_FORCE_TORQUE = "/arm_end_effector_force_torque"
+SYSTEM_FAULTS_STATUS = "/system_faults_status"
+ARM_FAULTS_STATUS = "/arm_faults_status"
+PAN_TILT_FAULTS_STATUS = "/pan_tilt_faults_status"
+POWER_FAULTS_STATUS = "/power_faults_status"
+BATTERY_STATE_OF_CHARGE = "/battery_state_of_charge"
+BATTERY_REMAINING_USEFUL_LIFE = "/battery_remaining_useful_life"
+BATTERY_TEMPERATURE = "/battery_temperature"
+
+# The simulation's outputs other nodes read, and its clock services.
+FLAGS_JOINT_STATES = "/flags/joint_states"
+SIM_SCOOP_WRENCH = "/sim/scoop_wrench"
+SIM_GRINDER_WRENCH = "/sim/grinder_wrench"
+SIM_RESUME = "/sim/resume"
+
+# The arm services' outputs and services (rosrun ow_lander arm_services).
+ARM_UNSTOW = "/arm/unstow"
+ARM_OPERATION = "/arm/operation"
+ARM_GROUND_DETECTOR = "/arm/ground_detector"
+GUARDED_MOVE_RESULT = "/guarded_move_result"
+
+# The power node's output (rosrun ow_power power) and the fault server (rosrun ow_faults faults).
+POWER = "/power"
+FAULTS = "/faults"

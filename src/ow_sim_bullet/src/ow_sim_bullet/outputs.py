@@ -19,6 +19,13 @@ from tf2_msgs.msg import TFMessage
 
 from ow_msgs.msg import JointStatesFlag
 from ow_msgs.msg import ToolState as ToolStateMsg
+from ow_runtime.names import (
+    ARM_END_EFFECTOR_FORCE_TORQUE,
+    CLOCK,
+    FLAGS_JOINT_STATES,
+    JOINT_STATES,
+    TF,
+)
 from ow_sim_bullet import conversions, wire
 from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.conversions import JointFrame
@@ -39,22 +46,23 @@ FLUSH_STEPS = 10
 #: is registered. The nodes a step waits for (:meth:`SimOutputs.flush` with ``only``) get them
 #: each time it waits, every ~8 steps in a mission; the others (the recorder, the monitors) need
 #: them only in order and whole: written to every subscriber at each wait, they cost the
-#: simulation 3.4 of its 8.7 CPU-s in a mission (docs/history/performance-journal.md, eleventh round).
+#: simulation 3.4 of its 8.7 CPU-s in a mission (docs/history/performance-journal.md, eleventh
+#: round).
 LOCKSTEP_FLUSH_STEPS = 50
 
 #: (topic, message class) of every output written with the wire publishers, in the order their
 #: queued messages are written: /clock first.
 WIRE_TOPICS: tuple[tuple[str, type], ...] = (
-    ("/clock", Clock),
-    ("/joint_states", JointState),
+    (CLOCK, Clock),
+    (JOINT_STATES, JointState),
     ("~joint_damping", JointState),
     # OceanWATERS' locked-joint flags (ow_faults), with every joint state.
-    ("/flags/joint_states", JointStatesFlag),
-    ("/tf", TFMessage),
+    (FLAGS_JOINT_STATES, JointStatesFlag),
+    (TF, TFMessage),
     *((f"~{tool}_wrench", WrenchStamped) for tool in TOOLS),
     ("~scoop_tip_ground", PointStamped),
     # OceanWATERS' type: Header + Wrench, the same bytes as a WrenchStamped.
-    ("/arm_end_effector_force_torque", ArmEndEffectorForceTorque),
+    (ARM_END_EFFECTOR_FORCE_TORQUE, ArmEndEffectorForceTorque),
     *((f"~{tool}_state", ToolStateMsg) for tool in TOOLS),
     *((f"~{tool}_model_state", ToolStateMsg) for tool in TOOLS),
     *((f"~{tool}_model_wrench", WrenchStamped) for tool in TOOLS),
@@ -106,14 +114,14 @@ class SimOutputs:
     ) -> None:
         self.sim = sim
         self._publishers = [publishers[topic] for topic, _ in WIRE_TOPICS]
-        self._clock_pub = publishers["/clock"]
-        self._joint_pub = publishers["/joint_states"]
+        self._clock_pub = publishers[CLOCK]
+        self._joint_pub = publishers[JOINT_STATES]
         self._damping_pub = publishers["~joint_damping"]
-        self._flags_pub = publishers["/flags/joint_states"]
-        self._tf_pub = publishers["/tf"]
+        self._flags_pub = publishers[FLAGS_JOINT_STATES]
+        self._tf_pub = publishers[TF]
         self._wrench_pubs = {tool: publishers[f"~{tool}_wrench"] for tool in TOOLS}
         self._tip_ground_pub = publishers["~scoop_tip_ground"]
-        self._wrist_pub = publishers["/arm_end_effector_force_torque"]
+        self._wrist_pub = publishers[ARM_END_EFFECTOR_FORCE_TORQUE]
         tool_wires = {tool: wire.ToolWire(tool, link) for tool, (link, _) in TOOLS.items()}
         self._tool_pubs = [
             (

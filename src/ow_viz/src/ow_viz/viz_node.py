@@ -20,6 +20,13 @@ from ow_description.description import BASE_FRAME, URDF_PATH
 from ow_description.errors import TerrainError
 from ow_description.model import LanderModel
 from ow_msgs.msg import GuardedMoveResult, HeightMap
+from ow_runtime.names import (
+    GUARDED_MOVE_RESULT,
+    JOINT_STATES,
+    ROBOT_DESCRIPTION,
+    TERRAIN_TOPIC,
+    TRAJECTORY_TOPIC,
+)
 from ow_runtime.node import init_node, spin
 from ow_viz.config import VizConfig
 from ow_viz.conversions import (
@@ -74,8 +81,8 @@ class VizNode:
         self.model = LanderModel()
         self._q_rest = np.zeros(self.model.nq)
         self._lock = threading.Lock()
-        rospy.set_param("/robot_description", urdf)
-        self._description = rospy.Publisher("/robot_description", String, queue_size=1, latch=True)
+        rospy.set_param(ROBOT_DESCRIPTION, urdf)
+        self._description = rospy.Publisher(ROBOT_DESCRIPTION, String, queue_size=1, latch=True)
         self._description.publish(String(data=urdf))
         self._static = tf2_ros.StaticTransformBroadcaster()
         self._static.sendTransform(
@@ -86,13 +93,11 @@ class VizNode:
         self._terrain = rospy.Publisher(f"{namespace}terrain", Marker, queue_size=1, latch=True)
         self._path = rospy.Publisher(f"{namespace}tool_path", Marker, queue_size=1, latch=True)
         self._ground = rospy.Publisher(f"{namespace}ground_point", Marker, queue_size=1, latch=True)
-        rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=joint_queue_size)
-        rospy.Subscriber("/sim/terrain", HeightMap, self._on_terrain, queue_size=1)
+        rospy.Subscriber(JOINT_STATES, JointState, self._on_joints, queue_size=joint_queue_size)
+        rospy.Subscriber(TERRAIN_TOPIC, HeightMap, self._on_terrain, queue_size=1)
+        rospy.Subscriber(TRAJECTORY_TOPIC, JointTrajectory, self._on_trajectory, queue_size=10)
         rospy.Subscriber(
-            "/sim/joint_trajectory", JointTrajectory, self._on_trajectory, queue_size=10
-        )
-        rospy.Subscriber(
-            "/guarded_move_result", GuardedMoveResult, self._on_guarded_move, queue_size=10
+            GUARDED_MOVE_RESULT, GuardedMoveResult, self._on_guarded_move, queue_size=10
         )
 
     def _on_joints(self, msg: Any) -> None:

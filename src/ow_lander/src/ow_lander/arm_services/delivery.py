@@ -15,6 +15,7 @@ from ow_lander import conversions as conv
 from ow_lander.arm_services.observer import ArmObserver
 from ow_lander.config import ExecutionConfig
 from ow_runtime.clock_client import SimClock, TrajectoryDeliveryError
+from ow_runtime.names import TRAJECTORY_TOPIC
 
 
 class TrajectoryDelivery:
@@ -34,7 +35,7 @@ class TrajectoryDelivery:
         self.config = config
         self.observer = observer
         self.sim_clock = SimClock(config.service_wait_s)
-        self.publisher = rospy.Publisher("/sim/joint_trajectory", JointTrajectory, queue_size=10)
+        self.publisher = rospy.Publisher(TRAJECTORY_TOPIC, JointTrajectory, queue_size=10)
 
     def hold(self, positions: Mapping[str, float]) -> bool:
         """Hand the simulation a hold of ``positions`` (rad by joint name) as a one-point

@@ -29,6 +29,7 @@ from ow_lander.execution.monitor import (
 from ow_lander.fault_watch_node import FaultWatch
 from ow_msgs.msg import GuardedMoveResult
 from ow_runtime.clock_client import TrajectoryDeliveryError
+from ow_runtime.names import GUARDED_MOVE_RESULT
 
 
 class ArmExecutor(ArmObserver):
@@ -58,7 +59,7 @@ class ArmExecutor(ArmObserver):
         self.delivery = TrajectoryDelivery(config, self)
         self._sim_clock = self.delivery.sim_clock
         self.result_pub = rospy.Publisher(
-            "/guarded_move_result", GuardedMoveResult, queue_size=10, latch=True
+            GUARDED_MOVE_RESULT, GuardedMoveResult, queue_size=10, latch=True
         )
         self.outlet = DecisionOutlet(config)
         self.faults = FaultWatch(self._on_fault_status)

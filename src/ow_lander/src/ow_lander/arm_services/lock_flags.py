@@ -11,7 +11,7 @@ import rospy
 
 from ow_lander.execution.fault_reaction import HARDWARE, FaultReaction
 from ow_msgs.msg import JointStatesFlag
-from ow_runtime.names import EVERY_MESSAGE, STAMP_SLACK_S
+from ow_runtime.names import EVERY_MESSAGE, FLAGS_JOINT_STATES, STAMP_SLACK_S
 
 
 class LockFlags:
@@ -31,7 +31,7 @@ class LockFlags:
         self._flags: deque[tuple[float, frozenset[str]]] = deque(maxlen=10000)
         self._newest = -1.0  # s (sim), the newest stamp received
         rospy.Subscriber(
-            "/flags/joint_states",
+            FLAGS_JOINT_STATES,
             JointStatesFlag,
             self._on_flags,
             queue_size=EVERY_MESSAGE,

@@ -27,6 +27,7 @@ from ow_lander.operations.registry import SERVICE_OPERATIONS
 from ow_lander.planning.planner import ArmPlanner
 from ow_msgs import srv
 from ow_msgs.msg import Operation
+from ow_runtime.names import ARM_OPERATION
 from ow_runtime.node import init_node, spin
 
 #: The planning services: name under /arm/ (the operation's name) and service class.
@@ -90,7 +91,7 @@ class ArmServicesNode:
         self.owner: str | None = None
         self._operation_id = 0
         self.executor = ArmExecutor(config.execution, self.model)
-        self.operation_pub = rospy.Publisher("/arm/operation", Operation, queue_size=20)
+        self.operation_pub = rospy.Publisher(ARM_OPERATION, Operation, queue_size=20)
         self.terrain = TerrainFeed(
             config.terrain_wait_s, config.fallback_ground_z, config.execution.lockstep
         )

@@ -22,7 +22,13 @@ from ow_lander.execution.guard_streams import GuardStreams
 from ow_lander.execution.monitor import ExecutionMonitor
 from ow_msgs.msg import GroundDetectorSignal
 from ow_runtime.lockstep_client import LockstepClient, LockstepError
-from ow_runtime.names import EVERY_MESSAGE, STAMP_SLACK_S
+from ow_runtime.names import (
+    ARM_END_EFFECTOR_FORCE_TORQUE,
+    ARM_GROUND_DETECTOR,
+    EVERY_MESSAGE,
+    JOINT_STATES,
+    STAMP_SLACK_S,
+)
 from ow_runtime.sim_time import wait_for_clock
 from owl_msgs.msg import ArmEndEffectorForceTorque
 
@@ -59,13 +65,11 @@ class ArmObserver:
         self._lockstep: LockstepClient | None = None
         self._joining: LockstepJoin | None = None  # None: not joining a lockstep
         self._wrench = (np.zeros(3), np.zeros(3))
-        self.signal_pub = rospy.Publisher(
-            "/arm/ground_detector", GroundDetectorSignal, queue_size=100
-        )
+        self.signal_pub = rospy.Publisher(ARM_GROUND_DETECTOR, GroundDetectorSignal, queue_size=100)
         # TCP_NODELAY: the simulation writes a few messages at a time, and Nagle's algorithm
         # with delayed acknowledgements held each write back 40 ms (a lockstep round trip).
         rospy.Subscriber(
-            "/joint_states",
+            JOINT_STATES,
             JointState,
             self._on_joint_states,
             queue_size=EVERY_MESSAGE,
@@ -75,7 +79,7 @@ class ArmObserver:
             self._state_changed, self._streams, lambda: self._monitor, self._publish_signals
         )
         rospy.Subscriber(
-            "/arm_end_effector_force_torque",
+            ARM_END_EFFECTOR_FORCE_TORQUE,
             ArmEndEffectorForceTorque,
             self._on_wrist,
             queue_size=EVERY_MESSAGE,

@@ -12,7 +12,7 @@ from ow_description.terrain import HeightMap
 from ow_lander.errors import OwLanderError
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_runtime.lockstep_client import LockstepError, simulation_status
-from ow_runtime.names import STAMP_SLACK_S
+from ow_runtime.names import STAMP_SLACK_S, TERRAIN_TOPIC
 
 #: s (wall) a plan in the lockstep waits for the terrain the simulation last published.
 TERRAIN_CATCH_UP_S = 10.0
@@ -41,7 +41,7 @@ class TerrainFeed:
         self._fallback_z = fallback_ground_z
         self._fallback = HeightMap.flat(fallback_ground_z)
         self._lockstep = lockstep
-        rospy.Subscriber("/sim/terrain", HeightMapMsg, self._on_terrain, queue_size=1)
+        rospy.Subscriber(TERRAIN_TOPIC, HeightMapMsg, self._on_terrain, queue_size=1)
 
     def _on_terrain(self, msg: HeightMapMsg) -> None:
         try:

@@ -15,7 +15,7 @@ from ow_description.description import BASE_FRAME, SCOOP_TIP_FRAME
 from ow_lander import conversions as conv
 from ow_lander.execution.guard_streams import GuardStreams
 from ow_lander.execution.monitor import ExecutionMonitor
-from ow_runtime.names import EVERY_MESSAGE
+from ow_runtime.names import EVERY_MESSAGE, TF, TF_STATIC
 
 
 class TipSampler:
@@ -46,10 +46,8 @@ class TipSampler:
         self._monitor = monitor
         self._publish_signals = publish_signals
         self._tf = tf2_ros.BufferCore(rospy.Duration(30.0))
-        rospy.Subscriber(
-            "/tf", rospy.AnyMsg, self._on_tf, queue_size=EVERY_MESSAGE, tcp_nodelay=True
-        )
-        rospy.Subscriber("/tf_static", TFMessage, self._on_tf_static, queue_size=10)
+        rospy.Subscriber(TF, rospy.AnyMsg, self._on_tf, queue_size=EVERY_MESSAGE, tcp_nodelay=True)
+        rospy.Subscriber(TF_STATIC, TFMessage, self._on_tf_static, queue_size=10)
 
     def _on_tf_static(self, msg: TFMessage) -> None:
         for transform in msg.transforms:

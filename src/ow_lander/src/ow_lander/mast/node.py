@@ -18,7 +18,7 @@ from ow_lander.errors import GoalError
 from ow_lander.fault_watch_node import FaultWatch
 from ow_lander.mast.pan_tilt import AntennaPointing, MoveWatch, check_joints_goal
 from ow_runtime.feedback import StampedFeedback
-from ow_runtime.names import EVERY_MESSAGE
+from ow_runtime.names import EVERY_MESSAGE, JOINT_STATES
 from ow_runtime.node import init_node, spin
 from ow_runtime.status_timer import share_status_timer
 from owl_msgs.msg import (
@@ -82,9 +82,7 @@ class PanTiltNode:
         self.faults = FaultWatch()
         self._pan = rospy.Publisher(PAN_COMMAND, Float64, queue_size=10)
         self._tilt = rospy.Publisher(TILT_COMMAND, Float64, queue_size=10)
-        rospy.Subscriber(
-            "/joint_states", JointState, self._on_joint_state, queue_size=EVERY_MESSAGE
-        )
+        rospy.Subscriber(JOINT_STATES, JointState, self._on_joint_state, queue_size=EVERY_MESSAGE)
         self.joints_server = actionlib.SimpleActionServer(
             "PanTiltMoveJoints", PanTiltMoveJointsAction, self._on_joints, auto_start=False
         )

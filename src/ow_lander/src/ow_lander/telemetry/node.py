@@ -20,6 +20,15 @@ from ow_lander.telemetry.joints import (
     TelemetryBuilder,
     TelemetryError,
 )
+from ow_runtime.names import (
+    ARM_JOINT_ACCELERATIONS,
+    ARM_JOINT_POSITIONS,
+    ARM_JOINT_TORQUES,
+    ARM_JOINT_VELOCITIES,
+    ARM_POSE,
+    JOINT_STATES,
+    PAN_TILT_POSITION,
+)
 from ow_runtime.node import init_node, spin
 from owl_msgs.msg import (
     ArmJointAccelerations,
@@ -80,14 +89,14 @@ class TelemetryNode:
                 warnings.simplefilter("ignore", SyntaxWarning)
                 return rospy.Publisher(topic, cls, queue_size=PUBLISH_QUEUE, tcp_nodelay=True)
 
-        self._positions = publisher("/arm_joint_positions", ArmJointPositions)
-        self._velocities = publisher("/arm_joint_velocities", ArmJointVelocities)
-        self._accelerations = publisher("/arm_joint_accelerations", ArmJointAccelerations)
-        self._torques = publisher("/arm_joint_torques", ArmJointTorques)
-        self._pan_tilt = publisher("/pan_tilt_position", PanTiltPosition)
-        self._pose = publisher("/arm_pose", ArmPose)
+        self._positions = publisher(ARM_JOINT_POSITIONS, ArmJointPositions)
+        self._velocities = publisher(ARM_JOINT_VELOCITIES, ArmJointVelocities)
+        self._accelerations = publisher(ARM_JOINT_ACCELERATIONS, ArmJointAccelerations)
+        self._torques = publisher(ARM_JOINT_TORQUES, ArmJointTorques)
+        self._pan_tilt = publisher(PAN_TILT_POSITION, PanTiltPosition)
+        self._pose = publisher(ARM_POSE, ArmPose)
         rospy.Subscriber(
-            "/joint_states",
+            JOINT_STATES,
             JointState,
             self._on_joint_state,
             queue_size=JOINT_STATE_QUEUE,
