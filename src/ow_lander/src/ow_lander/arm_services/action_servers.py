@@ -27,7 +27,7 @@ from ow_lander.actions.owl import (
 )
 from ow_lander.arm_services.execution import ArmExecutor
 from ow_lander.arm_services.stop_requests import PausingActionServer, StopRequests
-from ow_lander.errors import OwLanderError
+from ow_lander.errors import REQUEST_ERRORS
 from ow_lander.execution.monitor import ExecutionResult
 from ow_lander.operations.planner import Operations
 from ow_msgs.msg import Operation
@@ -103,7 +103,7 @@ class ArmActions:
         try:
             validate_goal(name, goal)
             refused = self.node.executor.faults.refusal(name)
-        except OwLanderError as error:
+        except REQUEST_ERRORS as error:
             refused = str(error)
         owner = self.node.claim(f"{name} goal") if refused is None else None
         if refused is not None or owner is not None:
@@ -141,7 +141,7 @@ class ArmActions:
         end: tuple[Any, Any, str]
         try:
             end = self._carry_out(name, handle, goal, parameters)
-        except OwLanderError as error:
+        except REQUEST_ERRORS as error:
             end = (handle.set_aborted, self._result(name, None), f"{name} failed: {error}")
         except Exception as error:
             rospy.logerr("arm_services: %s goal crashed: %r", name, error)

@@ -21,7 +21,7 @@ from ow_lander.arm_services.action_servers import ArmActions
 from ow_lander.arm_services.execution import ArmExecutor
 from ow_lander.arm_services.terrain import TerrainFeed
 from ow_lander.config import ArmServicesConfig
-from ow_lander.errors import ConfigError, OwLanderError
+from ow_lander.errors import REQUEST_ERRORS, ConfigError
 from ow_lander.operations.planner import Operations
 from ow_lander.operations.registry import SERVICE_OPERATIONS
 from ow_lander.planning.planner import ArmPlanner
@@ -34,6 +34,9 @@ from ow_runtime.node import init_node, spin
 OPERATIONS: dict[str, Any] = {
     spec.name: getattr(srv, spec.service) for spec in SERVICE_OPERATIONS if spec.service
 }
+#: What a service reports as a failed request: the arm's and the description's errors, and a
+#: request value no message conversion accepts.
+_FAILED_REQUEST: tuple[type[Exception], ...] = (*REQUEST_ERRORS, ValueError)
 #: The answer to a request or goal that arrives while another one runs (it is not queued).
 BUSY = "busy: {owner} is running; request refused"
 
@@ -122,7 +125,7 @@ class ArmServicesNode:
                 self.marker(name, Operation.START, parameters)
                 try:
                     body(name, parameters, response)
-                except (OwLanderError, ValueError) as error:
+                except _FAILED_REQUEST as error:
                     response.success = False
                     response.message = f"{name} failed: {error}" if prefix else str(error)
                 except Exception as error:
@@ -186,7 +189,7 @@ class ArmServicesNode:
         notes into ``notes``.
 
         Raises:
-            OwLanderError: no joint state, invalid request or no plan.
+            OwLanderError, DescriptionError: no joint state, invalid request or no plan.
         """
         q = self.model.q_from(self.executor.current_joints())
         terrain, terrain_note = self.terrain.current()

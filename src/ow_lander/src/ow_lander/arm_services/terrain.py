@@ -9,7 +9,7 @@ import rospy
 
 from ow_description.conversions import height_map_from_msg
 from ow_description.terrain import HeightMap
-from ow_lander.errors import OwLanderError
+from ow_lander.errors import REQUEST_ERRORS
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_runtime.lockstep_client import LockstepError, simulation_status
 from ow_runtime.names import STAMP_SLACK_S, TERRAIN_TOPIC
@@ -46,7 +46,7 @@ class TerrainFeed:
     def _on_terrain(self, msg: HeightMapMsg) -> None:
         try:
             terrain = height_map_from_msg(msg)
-        except OwLanderError as error:
+        except REQUEST_ERRORS as error:
             rospy.logerr("arm_services: ignoring /sim/terrain: %s", error)
             return
         with self._changed:
