@@ -22,19 +22,31 @@ SRC = Path(__file__).resolve().parents[2] / "src"
 #: The layers, bottom up; a package may import only packages of lower layers and those named in
 #: :data:`SAME_LAYER` (the README's diagram draws these; ``test_the_readme_lists_the_packages``).
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("ow_msgs", "owl_msgs"),  # interfaces
+    ("ow_msgs", "owl_msgs", "ow_materials"),  # interfaces
     ("ow_runtime", "ow_description"),  # how a node lives; what the robot is
-    ("ow_faults", "ow_sim_bullet", "ow_dem_bridge", "ow_power", "ow_viz"),  # producers
+    # producers
+    (
+        "ow_faults",
+        "ow_sim_bullet",
+        "ow_dem_bridge",
+        "ow_power",
+        "ow_viz",
+        "ow_regolith",
+        "ow_cameras",
+    ),
     ("ow_lander",),  # the arm and the mast
     ("ow_bringup",),  # launch, node configuration, the harness
     ("ow_mission",),  # the autonomy client
 )
 #: Imports within a layer: the simulation applies the fault injector's fault set and takes its
-#: terrain forces from the DEM bridge's models; the battery follows the injected power faults.
+#: terrain forces from the DEM bridge's models; the battery follows the injected power faults;
+#: the cameras follow the /faults changes (their trigger fault) and speak the power loads protocol.
 SAME_LAYER = {
     ("ow_sim_bullet", "ow_faults"),
     ("ow_sim_bullet", "ow_dem_bridge"),
     ("ow_power", "ow_faults"),
+    ("ow_cameras", "ow_faults"),
+    ("ow_cameras", "ow_power"),
 }
 
 #: Modules that may import rospy besides node modules (``*_node``, ``node``): packages and
@@ -48,6 +60,23 @@ ROS_FREE = (
     "ow_lander.operations",
     "ow_lander.execution",
     "ow_lander.actions",
+    "ow_regolith.materials",
+    "ow_regolith.budget",
+    "ow_regolith.polytope",
+    "ow_regolith.scoop",
+    "ow_regolith.landing",
+    "ow_regolith.carving_ledger",
+    "ow_regolith.config",
+    "ow_regolith.tracker",
+    "ow_cameras.render",
+    "ow_cameras.stereo",
+    "ow_cameras.capture",
+    "ow_cameras.rig",
+    "ow_cameras.texture",
+    "ow_cameras.config",
+    "ow_cameras.commands",
+    "ow_cameras.errors",
+    "ow_cameras.protocol",
 )
 #: Messages read by attribute only may be converted in a core's ``conversions`` module.
 ROS_FREE_EXCEPT = {"ow_description.conversions"}

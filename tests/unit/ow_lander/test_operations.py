@@ -7,7 +7,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ow_description.description import ARM_JOINTS, DEFAULT_GROUND_Z, STOWED, UNSTOWED
+from ow_description.description import (
+    ARM_JOINTS,
+    DEFAULT_GROUND_Z,
+    SCOOP_ABOVE_GROUND,
+    STOWED,
+    UNSTOWED,
+)
 from ow_description.model import ARM_LINKS, LanderModel
 from ow_description.terrain import HeightMap
 from ow_description.trajectory import Speed
@@ -297,3 +303,80 @@ def test_a_start_inside_the_lander_model_is_left_by_an_escape_first(ops, terrain
 def test_no_escape_from_a_valid_start(ops, terrain):
     assert ops.motions.escape(_q(ops.model, STOWED), terrain) is None
     assert ops.plan("unstow", _q(ops.model, STOWED), terrain).segments[0].label != "escape"
+
+
+def _cut_state(ops, terrain):
+    """Halfway along a 0.1 m deep linear dig's cut (where a cancelled dig leaves the arm)."""
+    q = _q(ops.model, UNSTOWED)
+    request = dict(x=1.65, y=0.0, depth=0.1, length=0.3, ground_position=GROUND)
+    cut = next(s for s in ops.plan_dig_linear(q, terrain, request).segments if s.label == "cut")
+    return ops.planner.full(cut.waypoints[len(cut.waypoints) // 2], q)
+
+
+def _deepest_sweep_state(ops, terrain):
+    """The state of a 0.1 m deep circular dig's sweep with the hand lowest."""
+    q = _q(ops.model, UNSTOWED)
+    request = dict(x=1.65, y=0.0, depth=0.1, parallel=True, ground_position=GROUND)
+    sweep = ops.plan_dig_circular(q, terrain, request).segments[-1].waypoints
+    states = np.linspace(sweep[0], sweep[-1], 121)
+    return ops.planner.full(
+        min(states, key=lambda a: ops.model.fk(ops.planner.full(a, q), "l_hand")[2, 3]), q
+    )
+
+
+def _hand_bottom(ops, q) -> float:
+    """m, the height of l_hand's lowest point at ``q``."""
+    return 1.0 - ops.model.collision.terrain_contact(q, HeightMap.flat(1.0), ("l_hand",))[1]
+
+
+#: Starts in the terrain: (name, configuration maker, l_hand's depth in the terrain m: the
+#: terrain is flat at that height above the hand's lowest point; None: the ground at GROUND).
+IN_THE_TERRAIN = [
+    ("scoop_buried", lambda ops, terrain: _q(ops.model, SCOOP_ABOVE_GROUND), 0.02),
+    ("hand_buried", lambda ops, terrain: _q(ops.model, SCOOP_ABOVE_GROUND), 0.12),
+    ("dig_cancelled_in_its_cut", _cut_state, None),
+    ("circular_dig_stopped_deep", _deepest_sweep_state, 0.1),
+]
+
+
+@pytest.mark.parametrize(("start", "make", "hand_depth"), IN_THE_TERRAIN)
+@pytest.mark.parametrize("name", ["unstow", "stow", "move_joints", "move_cartesian"])
+def test_a_start_in_the_terrain_is_left_by_a_lift_first(
+    ops, terrain, start, make, hand_depth, name
+):
+    """Item 5 ("never stranded"): with links in the terrain (the hand too: a burial, a dig
+    stopped deep) every operation starts with a lift of the scoop tip out of the terrain;
+    before, every one was refused with "the arm's current configuration is invalid". On the
+    way out only the links already in the terrain may be in it; after it none is."""
+    q = make(ops, terrain)
+    ground = GROUND if hand_depth is None else _hand_bottom(ops, q) + hand_depth
+    buried = HeightMap.flat(ground)
+    _, hand_below = ops.model.collision.terrain_contact(q, buried, ("l_hand",))
+    assert hand_below > 0.0  # the dig's cut: the hand is a few mm below the ground beside it
+    here = ops.model.fk(q, "l_scoop_tip")
+    requests = {
+        "move_joints": {"angles": [UNSTOWED[j] for j in ARM_JOINTS]},
+        "move_cartesian": {
+            "position": here[:3, 3] + [0.0, 0.0, ground - here[2, 3] + 0.3],
+            "rotation": here[:3, :3],
+        },
+    }
+    plan = ops.plan(name, q, buried, requests.get(name))
+    lift = plan.segments[0]
+    assert lift.label == "lift_off" and "lifted it out first" in " ".join(plan.notes)
+    assert np.array_equal(lift.waypoints[0], ops.planner.arm(q))
+    leaving, depths = ops.motions.leaving(q, buried, tools=True)
+    assert depths["l_hand"] == pytest.approx(hand_below)
+    assert ops.planner.first_invalid(lift.waypoints, leaving, 0.01) is None
+    out = ops.planner.full(lift.waypoints[-1], q)
+    assert ops.planner.is_valid(lift.waypoints[-1], CheckContext(out, buried))
+    _check_collision_free(ops, out, buried, replace(plan, segments=plan.segments[1:]))
+
+
+def test_a_lander_in_the_terrain_up_to_its_shoulder_is_refused_with_the_reason(ops):
+    """The terrain up to the shoulder (z 0.27 m): no motion takes the arm out of it, and the
+    refusal says which link stays in it."""
+    with pytest.raises(
+        PlanningError, match=r"cannot lift l_\w+ out of the terrain: .*l_\w+ is \d+ mm below"
+    ):
+        ops.plan("unstow", _q(ops.model, SCOOP_ABOVE_GROUND), HeightMap.flat(0.15))

@@ -59,8 +59,8 @@ def carver() -> tuple[TerrainCarver, list[FakeSurface]]:
     return TerrainCarver(ground(), CONFIG, {"scoop": plate(), "grinder": plate()}, make), surfaces
 
 
-def press(carver: TerrainCarver, tool: str, z: float, force: float) -> None:
-    carver.cut(tool, np.eye(3), np.array([AT[0], AT[1], z]), force)
+def press(carver: TerrainCarver, tool: str, z: float, force: float, digging: bool = True) -> None:
+    carver.cut(tool, np.eye(3), np.array([AT[0], AT[1], z]), force, digging)
 
 
 def under_plate(carver: TerrainCarver) -> float:

@@ -87,6 +87,10 @@ def test_the_shipped_yaml_files_load_as_the_launch_file_loads_them():
             {"gains": {"j_shou_yaww": {"p": 1, "i": 0, "d": 0}}},
             "sim/gains/j_shou_yaww: unknown joint (did you mean 'j_shou_yaw'?)",
         ),
+        ({"dig_forward_angle": 0}, "sim/dig_forward_angle = 0 rad is outside (0, 3.14159] rad"),
+        ({"dig_slope": 2.0}, "sim/dig_slope = 2 rad is outside (0, 1.5708] rad"),
+        ({"dig_timeout": -1}, "sim/dig_timeout = -1 s is outside (0, inf] s"),
+        ({"grind_down_angle": "x"}, "sim/grind_down_angle must be a number, got 'x'"),
         ({"gains": {"j_shou_yaw": {"p": 1, "i": 0}}}, "sim/gains/j_shou_yaw/d is missing"),
         (
             {"gains": {"j_shou_yaw": {"p": -1, "i": 0, "d": 0}}},

@@ -25,6 +25,7 @@ from ow_sim_bullet.outputs import FLUSH_STEPS, LOCKSTEP_FLUSH_STEPS, WIRE_TOPICS
 from ow_sim_bullet.runner import SimRunner
 from ow_sim_bullet.sim_core import BulletSim
 from ow_sim_bullet.terrains import flat
+from ow_sim_bullet.tool_tracking import DigPhase
 
 
 class Recorder:
@@ -141,6 +142,37 @@ def test_the_terrain_is_republished_after_it_changed(setup):
     setup.steps(1)
     assert len(setup.terrain.messages) == 2
     assert setup.terrain.messages[-1].heights[0] == pytest.approx(DEFAULT_GROUND_Z - 0.1)
+
+
+def test_the_dig_phase_is_told_at_start_and_at_each_change(setup):
+    """OceanWATERS' latched scoop_dig_phase: NOT_DIGGING from the start, then one message per
+    change, stamped with the sim time of the step it changed in."""
+    told: list[tuple[float, DigPhase]] = []
+    frames = joint_frames(URDF_PATH.read_text())
+    outputs = SimOutputs(
+        setup.sim,
+        setup.sim.config,
+        setup.recorders,
+        setup.terrain,
+        frames,
+        on_dig_phase=lambda t, phase: told.append((t, phase)),
+    )
+    outputs.publish_dig_phase()
+    assert told == [(0.0, DigPhase.NOT_DIGGING)]
+    for _ in range(5):
+        setup.sim.step()
+        outputs.after_step()
+    assert len(told) == 1  # no change, no message
+    setup.sim.tracker.dig.phase = DigPhase.SINKING  # as a dig's start would
+    setup.sim.step()
+    outputs.after_step()
+    setup.sim.step()
+    outputs.after_step()
+    assert told[1:] == [(pytest.approx(0.06), DigPhase.SINKING)]
+    setup.sim.reset()  # forgets the dig
+    setup.sim.step()
+    outputs.after_step()
+    assert told[2:] == [(pytest.approx(0.08), DigPhase.NOT_DIGGING)]
 
 
 @pytest.fixture()

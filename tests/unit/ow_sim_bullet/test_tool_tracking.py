@@ -26,6 +26,7 @@ from ow_sim_bullet.tool_forces import ToolForces
 from ow_sim_bullet.tool_tracking import DIG_END_GAP_S, WRIST_FT_LINK, ToolTracker
 
 MATERIAL = 3
+CONFIG = SimConfig(terrain_material=MATERIAL)
 COM = np.array([0.01, -0.02, 0.03])
 
 
@@ -61,13 +62,13 @@ def model() -> pin.Model:
 @pytest.fixture()
 def tracker(model) -> ToolTracker:
     ground = HeightMap.flat(DEFAULT_GROUND_Z, half_extent=3.0, resolution=0.04)
-    terrain = TerrainCarver(ground, SimConfig(), {}, lambda _: FakeSurface())
+    terrain = TerrainCarver(ground, CONFIG, {}, lambda _: FakeSurface())
     return ToolTracker(
         model,
         ToolForces({"scoop": 10, "grinder": 11}),
         {"scoop": COM, "grinder": np.zeros(3)},
         terrain,
-        MATERIAL,
+        CONFIG,
         frames=[frame.name for frame in model.frames],
     )
 
@@ -184,8 +185,8 @@ def test_a_tool_above_all_terrain_is_tracked_as_with_its_full_kinematics(model, 
         model,
         ToolForces({"scoop": 10, "grinder": 11}),
         {"scoop": COM, "grinder": np.zeros(3)},
-        TerrainCarver(ground, SimConfig(), {}, lambda _: FakeSurface()),
-        MATERIAL,
+        TerrainCarver(ground, CONFIG, {}, lambda _: FakeSurface()),
+        CONFIG,
         frames=[frame.name for frame in model.frames],
     )
     full._terrain.above = lambda point: False  # never skips

@@ -22,27 +22,34 @@ from ow_description.terrain import HeightMap
 
 FloatArray = npt.NDArray[np.float64]
 
-#: Link pairs that never need checking: adjacent or overlapping by design (OceanWATERS SRDF).
+#: Link pairs never checked: OceanWATERS' SRDF list (spec section 15.1), adjacent links and pairs
+#: that cannot touch, less the pairs of its camera head and lights, which have no collision
+#: shapes here. Every other pair of links with shapes is checked: the arm's links against each
+#: other, the body, the mast, the antenna panel and the dock; the antenna panel against the body
+#: and the dock.
 DISABLED_COLLISION_PAIRS: frozenset[frozenset[str]] = frozenset(
     frozenset(pair)
     for pair in (
+        # Adjacent.
         ("base_link", "l_ant_foot"),
         ("base_link", "l_shou"),
+        ("base_link", "lander_sample_dock0"),
         ("l_ant_foot", "l_ant_panel"),
-        ("l_ant_foot", "l_prox"),
-        ("l_ant_foot", "l_shou"),
         ("l_dist", "l_prox"),
         ("l_dist", "l_wrist"),
+        ("l_grinder", "l_hand"),
         ("l_hand", "l_scoop"),
-        ("l_hand", "l_grinder"),
         ("l_hand", "l_wrist"),
         ("l_prox", "l_shou"),
-        ("l_scoop", "l_wrist"),
-        ("l_grinder", "l_wrist"),
-        # Rigidly attached to each other (both on the lander body).
-        ("base_link", "lander_sample_dock0"),
-        ("l_ant_panel", "lander_sample_dock0"),
+        # Never in contact.
+        ("l_ant_foot", "l_dist"),
+        ("l_ant_foot", "l_prox"),
+        ("l_ant_foot", "l_shou"),
         ("l_ant_foot", "lander_sample_dock0"),
+        ("l_grinder", "l_scoop"),
+        ("l_grinder", "l_wrist"),
+        ("l_scoop", "l_wrist"),
+        ("l_shou", "lander_sample_dock0"),
     )
 )
 

@@ -6,7 +6,11 @@ Joints are always looked up by name; the tuples below only fix the order of our 
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
 
 #: The lander URDF: the one source of truth for kinematics, dynamics and collision shapes.
 URDF_PATH: Path = Path(__file__).resolve().parents[2] / "urdf" / "lander.urdf"
@@ -26,6 +30,16 @@ GRINDER_JOINT = "j_grinder"
 ANTENNA_JOINTS: tuple[str, ...] = ("j_ant_pan", "j_ant_tilt")
 #: All nine movable joints, in URDF document order.
 ALL_JOINTS: tuple[str, ...] = (*ARM_JOINTS, GRINDER_JOINT, *ANTENNA_JOINTS)
+#: The arm joints that turn without end, as OceanWATERS' URDF ``continuous`` joints: any angle
+#: is a valid goal (the same as that angle less whole turns), paths go the shorter way round and
+#: no joint limit applies. The URDF writes them ``revolute`` with :data:`CONTINUOUS_TRAVEL` of
+#: travel, because pinocchio gives a ``continuous`` joint two coordinates (cos, sin): every array
+#: of joint angles here stays one number per joint.
+CONTINUOUS_JOINTS: tuple[str, ...] = ("j_prox_pitch", "j_dist_pitch", "j_hand_yaw", "j_scoop_yaw")
+#: rad, the travel the URDF gives each continuous joint either side of 0 (two turns): the
+#: simulated joint never reaches it, as every motion takes the shorter way round from where the
+#: joint is, so no measured angle ever falls outside the model's range.
+CONTINUOUS_TRAVEL = 4 * math.pi
 
 #: m/s^2, magnitude of Europa's surface gravity, along -z of base_link (the lander stands level).
 EUROPA_GRAVITY = 1.315
@@ -90,3 +104,18 @@ UNSTOWED: dict[str, float] = {
     "j_hand_yaw": 1.5707,
     "j_scoop_yaw": 0.0,
 }
+
+
+def nearest_turn(angle: npt.ArrayLike, reference: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """``angle`` (rad) moved by whole turns to the value nearest ``reference`` (rad), elementwise:
+    the same orientation of a continuous joint, reached from ``reference`` the shorter way round.
+    An angle already within half a turn of ``reference`` is returned unchanged (exactly)."""
+    angle = np.asarray(angle, dtype=np.float64)
+    turns = np.round((np.asarray(reference, dtype=np.float64) - angle) / (2 * math.pi))
+    return angle + (2 * math.pi) * turns
+
+
+def wrap_angle(angle: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """``angle`` (rad) wrapped into [-pi, pi), elementwise (as OceanWATERS' ``normalize_radians``
+    and ros_control's shortest angular distance)."""
+    return np.mod(np.asarray(angle, dtype=np.float64) + math.pi, 2 * math.pi) - math.pi

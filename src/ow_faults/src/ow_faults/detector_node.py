@@ -7,7 +7,6 @@ import threading
 from functools import partial
 from typing import Any
 
-import actionlib
 import rospy
 from actionlib_msgs.msg import GoalStatusArray
 
@@ -16,6 +15,7 @@ from ow_faults.errors import FaultError
 from ow_faults.listener_node import FaultsListener
 from ow_faults.stream_order import PacingStream
 from ow_msgs.msg import JointStatesFlag
+from ow_runtime.action_server import ActionServer
 from ow_runtime.names import (
     ARM_ACTIONS,
     ARM_END_EFFECTOR_FORCE_TORQUE,
@@ -118,9 +118,7 @@ class DetectorNode:
                 partial(self._on_status, action),
                 queue_size=EVERY_MESSAGE,
             )
-        self.clear_server = actionlib.ActionServer(
-            "FaultClear", FaultClearAction, self._on_clear, auto_start=False
-        )
+        self.clear_server = ActionServer("FaultClear", FaultClearAction, self._on_clear)
         self.clear_server.start()
         # Its status from a timer that outlives a clock set back (actionlib's own ends).
         self._status_timer = share_status_timer([self.clear_server])

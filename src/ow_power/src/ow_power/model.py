@@ -125,9 +125,9 @@ class PowerSample:
         joint_power_w: (m,) W, eq. 1 per joint.
         mechanical_power_w: W, sum of ``joint_power_w`` (eq. 2 without P0).
         mechanical_power_abs_w: W, sum of the absolute joint powers.
-        auxiliary_power_w: W, P0.
-        total_power_w: W, eq. 2.
-        electrical_power_w: W, ``mechanical_power_abs_w / efficiency + P0``.
+        auxiliary_power_w: W, P0 plus the loads drawn besides the motors (:mod:`ow_power.loads`).
+        total_power_w: W, eq. 2 (with ``auxiliary_power_w`` for P0).
+        electrical_power_w: W, ``mechanical_power_abs_w / efficiency + auxiliary_power_w``.
         dt_s: s, interval this sample was integrated over (0 for the first sample and after a
             gap longer than ``max_dt_s`` or a stamp that went backwards).
         energy_j: J, cumulative eq. 4 (with P0).
@@ -173,7 +173,12 @@ class PowerIntegrator:
         self.skipped_intervals = 0
 
     def update(
-        self, stamp_s: float, names: Sequence[str], velocity: ArrayLike, effort: ArrayLike
+        self,
+        stamp_s: float,
+        names: Sequence[str],
+        velocity: ArrayLike,
+        effort: ArrayLike,
+        load_w: float = 0.0,
     ) -> PowerSample:
         """Add one joint state.
 
@@ -186,6 +191,8 @@ class PowerIntegrator:
             names: joint names of the message.
             velocity: (n,) rad/s.
             effort: (n,) N m.
+            load_w: W, loads drawn besides the motors (:mod:`ow_power.loads`), added to P0
+                like it and held over the interval like the joints' power.
 
         Returns:
             The sample's power and the energies accumulated so far.
@@ -199,9 +206,9 @@ class PowerIntegrator:
         selected, power = joint_power(names, velocity, effort, self.config.joints)
         mechanical = float(np.sum(power))
         mechanical_abs = float(np.sum(np.abs(power)))
-        p0 = self.config.auxiliary_power_w
-        total = mechanical + p0
-        electrical = mechanical_abs / self.config.motor_efficiency + p0
+        auxiliary = self.config.auxiliary_power_w + load_w
+        total = mechanical + auxiliary
+        electrical = mechanical_abs / self.config.motor_efficiency + auxiliary
 
         dt = 0.0
         if self._last_stamp_s is not None:
@@ -219,7 +226,7 @@ class PowerIntegrator:
             joint_power_w=power,
             mechanical_power_w=mechanical,
             mechanical_power_abs_w=mechanical_abs,
-            auxiliary_power_w=p0,
+            auxiliary_power_w=auxiliary,
             total_power_w=total,
             electrical_power_w=electrical,
             dt_s=dt,

@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import sys
+import threading
 from collections.abc import Callable, Sequence
 
 import rospy
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
 
 from ow_msgs.msg import Power
 from ow_power.config import PowerConfig
 from ow_power.conversions import joint_state_fields, power_message
 from ow_power.errors import ConfigError, PowerError
+from ow_power.loads import LOADS_TOPIC, LoadSum
 from ow_power.model import PowerIntegrator
 from ow_runtime.batched_publisher import BatchedPublisher
 from ow_runtime.names import EVERY_MESSAGE
@@ -37,9 +40,13 @@ class PowerNode:
         Subscribes:
             ``joint_states`` (sensor_msgs/JointState, every message): position rad, velocity
             rad/s, effort = applied torque N m; joints matched by name.
+            ``/electrical_power`` (std_msgs/Float64, W, latched by each publisher): the loads a
+            node draws besides the motors (:mod:`ow_power.loads`; the mast's ActivateComms),
+            added to P0 from the next joint state on.
         Publishes:
             ``power`` (ow_msgs/Power, written in the callback): one message per usable
-            joint state, stamped with its stamp; energies accumulate from the node's start.
+            joint state, stamped with its stamp; energies accumulate from the node's start;
+            ``auxiliary_power`` is P0 plus the loads.
         Parameters (private, read once; see :class:`~ow_power.config.PowerConfig`):
             ``~auxiliary_power_w`` (float, W, default 43.0): P0.
             ``~motor_efficiency`` (float in (0, 1], default 0.9).
@@ -60,16 +67,31 @@ class PowerNode:
         """
         self._integrator = PowerIntegrator(config)
         self._listeners = tuple(listeners)
+        self._loads_lock = threading.Lock()
+        self._loads = LoadSum()
         self._publisher = BatchedPublisher("power", Power)
+        self._loads_subscriber = rospy.Subscriber(
+            LOADS_TOPIC, Float64, self._on_load, queue_size=EVERY_MESSAGE
+        )
         self._subscriber = rospy.Subscriber(
             "joint_states", JointState, self._on_joint_states, queue_size=EVERY_MESSAGE
         )
 
+    def _on_load(self, msg: Float64) -> None:
+        publisher = msg._connection_header.get("callerid", "?")
+        try:
+            with self._loads_lock:
+                self._loads.update(publisher, msg.data)
+        except PowerError as exc:
+            rospy.logwarn(f"power: {LOADS_TOPIC} ignored: {exc}")
+
     def _on_joint_states(self, msg: JointState) -> None:
         stamp_s, names, velocity, effort = joint_state_fields(msg)
         skipped = self._integrator.skipped_intervals
+        with self._loads_lock:
+            load_w = self._loads.total_w
         try:
-            sample = self._integrator.update(stamp_s, names, velocity, effort)
+            sample = self._integrator.update(stamp_s, names, velocity, effort, load_w)
         except PowerError as exc:
             rospy.logwarn_throttle(5.0, f"power: joint state at {stamp_s:.3f} s skipped: {exc}")
             return

@@ -25,11 +25,13 @@ from ow_sim_bullet.errors import ConfigError
 FloatArray = npt.NDArray[np.float64]
 IndexArray = npt.NDArray[np.intp]
 
-#: m, depth below the surface at which a tool that does not press removes material anyway.
+#: m, depth below the surface at which a tool removes material anyway, digging or not, pressing
+#: or not (a terrain replaced around a tool; a tool without contacts, ``tool_contact`` false).
 EMBEDDED_DEPTH = 0.01
 #: m, how far above the floor of the surface the terrain may be carved.
 FLOOR_MARGIN = 1e-3
-#: Powered cutters: they remove what they touch at the full ``carve_step`` whatever the force.
+#: Powered cutters: digging, they remove what they touch at the full ``carve_step`` whatever the
+#: force.
 POWERED_TOOLS = frozenset({"grinder"})
 #: m, how far ahead of a moving tool tip the terrain counts for the tool's depth.
 DEPTH_LOOKAHEAD = 0.05
@@ -109,12 +111,15 @@ class CarvableSurface(Protocol):
 class TerrainCarver:
     """The terrain's height map, lowered under the tools; the simulator's surface follows it.
 
-    Carving (a viscoplastic terrain): a tool pressing with a total normal force F above
+    Carving: the terrain gives way only to a tool that digs (the caller decides: the scoop in a
+    dig phase, the grinder grinding; :class:`~ow_sim_bullet.tool_tracking.ToolTracker`);
+    elsewhere it is solid. A digging tool pressing with a total normal force F above
     ``terrain_yield_force`` F_y lowers the terrain under its surface points by up to
-    ``carve_step`` x min(1, (F - F_y) / (``carve_full_force`` - F_y)); material a tool is more
-    than :data:`EMBEDDED_DEPTH` inside is removed at any force; a powered cutter
-    (:data:`POWERED_TOOLS`) touching the terrain lowers it by the full ``carve_step``. Each point
-    lowers the four corners of its grid cell, never below the surface's floor.
+    ``carve_step`` x min(1, (F - F_y) / (``carve_full_force`` - F_y)) (a viscoplastic terrain);
+    a digging powered cutter (:data:`POWERED_TOOLS`) touching the terrain lowers it by the full
+    ``carve_step``. Material any tool is more than :data:`EMBEDDED_DEPTH` inside is removed,
+    digging or not. Each point lowers the four corners of its grid cell, never below the
+    surface's floor.
 
     Args:
         heightmap: the initial terrain (copied).
@@ -182,17 +187,27 @@ class TerrainCarver:
             velocity: (3,) m/s, its velocity: the terrain up to :data:`DEPTH_LOOKAHEAD` ahead
                 of a tip moving faster than :data:`MOVING_SPEED` counts.
         """
+        terrain_z, surface = self.surface_ahead(point, velocity)
+        return terrain_z, max(0.0, surface - float(point[2]))
+
+    def surface_ahead(self, point: FloatArray, velocity: FloatArray) -> tuple[float, float]:
+        """(terrain z at a tool tip, highest terrain z at and ahead of it), m: the terrain of
+        :meth:`depth` (above all terrain, at the tip only).
+
+        Args:
+            point: (3,) m, the tip in base_link.
+            velocity: (3,) m/s, its velocity (see :meth:`depth`).
+        """
         x, y, z = point.tolist()
         vx, vy, _ = velocity.tolist()
         # Above all terrain the depth is 0 whatever lies ahead: look at the tip only, as at rest.
         horizontal = 0.0 if z > self._height_bound else float(np.hypot(vx, vy))
         if horizontal < MOVING_SPEED:
-            terrain_z = surface = self._heights_along(x, y, 0.0, 0.0, (0.0,))[0]
-        else:
-            # The first distance is 0: the tip itself.
-            ahead = self._heights_along(x, y, vx / horizontal, vy / horizontal, _LOOKAHEAD_STEPS)
-            terrain_z, surface = ahead[0], max(ahead)
-        return terrain_z, max(0.0, surface - z)
+            terrain_z = self._heights_along(x, y, 0.0, 0.0, (0.0,))[0]
+            return terrain_z, terrain_z
+        # The first distance is 0: the tip itself.
+        ahead = self._heights_along(x, y, vx / horizontal, vy / horizontal, _LOOKAHEAD_STEPS)
+        return ahead[0], max(ahead)
 
     def _heights_along(
         self, x: float, y: float, dx: float, dy: float, distances: tuple[float, ...]
@@ -235,7 +250,12 @@ class TerrainCarver:
         )
 
     def cut(
-        self, tool: str, rotation: FloatArray, position: FloatArray, normal_force: float
+        self,
+        tool: str,
+        rotation: FloatArray,
+        position: FloatArray,
+        normal_force: float,
+        digging: bool,
     ) -> None:
         """Lower the terrain under one tool (the surface follows at :meth:`commit`).
 
@@ -244,6 +264,8 @@ class TerrainCarver:
             rotation: (3, 3) of its link frame in base_link.
             position: (3,) m, its link origin in base_link.
             normal_force: N, total normal contact force on it in the last step.
+            digging: the tool digs (the terrain gives way to it); else only material it is
+                more than :data:`EMBEDDED_DEPTH` inside goes.
         """
         config = self._config
         hm = self._heightmap
@@ -262,7 +284,11 @@ class TerrainCarver:
         ):
             inside = np.flatnonzero((row >= 0) & (row < rows - 1) & (col >= 0) & (col < cols - 1))
         excess = normal_force - config.terrain_yield_force
-        if tool in POWERED_TOOLS and normal_force > 0.0:
+        if not digging:
+            # Solid ground: a tool pressed into it meets the contact forces. Only material it
+            # is well inside (a terrain replaced around it) goes, so that it is not trapped.
+            target, slack = z, EMBEDDED_DEPTH
+        elif tool in POWERED_TOOLS and normal_force > 0.0:
             # A powered cutter removes what it touches at the full rate (OceanWATERS lowers the
             # terrain under the grinder whatever the force).
             target, slack = z - config.carve_step, 0.0

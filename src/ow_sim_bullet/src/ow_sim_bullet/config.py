@@ -147,6 +147,11 @@ def _pair(params: Params, key: str, default: tuple[float, float], unit: str) -> 
     return first, second
 
 
+def _angle(params: Params, key: str, default: float, high: float = math.pi) -> float:
+    """``key`` as an angle in (0, ``high``] rad."""
+    return params.number(key, default, low=0.0, low_inclusive=False, high=high, unit="rad")
+
+
 def _non_empty(params: Params, key: str, default: str) -> str:
     """``key`` as a non-empty string."""
     value = params.string(key, default)
@@ -198,13 +203,30 @@ class SimConfig:
         terrain_file_center: (x, y) m in base_link of the centre of a ``.npy`` or PNG file's grid.
         terrain_png_height_range: (z at pixel 0, z at pixel 65535) m for 16-bit PNG files.
         terrain_material: material id reported to terrain-force models.
-        terrain_yield_force: N, total normal contact force above which a tool carves the terrain.
+        terrain_yield_force: N, total normal contact force above which a digging tool carves the
+            terrain (outside a dig the terrain is solid).
         carve_step: m, how far below the tool a yielding cell is lowered in one carve update when
             the tool presses with ``carve_full_force`` or more (less in proportion to the force
             above ``terrain_yield_force``: a viscoplastic terrain).
         carve_full_force: N, normal force at which the terrain yields at the full ``carve_step``
             (must exceed ``terrain_yield_force``).
-        carve_period: s of sim time between carve updates (and Bullet terrain refreshes).
+        carve_period: s of sim time between carve updates (and Bullet terrain refreshes); the
+            scoop's dig phase and whether the grinder grinds are decided at each.
+        dig_forward_angle: rad, largest angle between the scoop tip's velocity and the scoop's
+            forward axis (+x of l_scoop_tip, out of its mouth) at which the scoop moves mouth
+            first (OceanWATERS' ``moving_forward``, 5 degrees there).
+        dig_sink_angle: rad, a dig starts (SINKING) only with the scoop's bottom normal (+z of
+            l_scoop_tip) within this angle of straight down (OceanWATERS: 90 degrees).
+        dig_slope: rad, slope of the tip's path separating the phases: SINKING turns to PLOWING
+            once the path descends less steeply, PLOWING to RETRACTING once it rises more
+            steeply.
+        dig_exit_clearance: m, a RETRACTING scoop whose tip is this far above the terrain has
+            left it: NOT_DIGGING.
+        dig_timeout: s of sim time a dig phase lasts with the scoop tip standing still or out of
+            the terrain before it ends (NOT_DIGGING).
+        grind_down_angle: rad, the grinder grinds (cuts the terrain) only when its axis (+x of
+            l_grinder) is within this angle of straight down and its tip moves (OceanWATERS:
+            10 degrees).
         terrain_forces: terrain-force model name for ``ow_dem_bridge.models.make_model``, or "none".
         terrain_force_params: parameters passed to that factory.
         joint_state_rate_hz: Hz of sim time, /joint_states and /sim/joint_damping.
@@ -241,6 +263,12 @@ class SimConfig:
     carve_step: float = 0.003
     carve_full_force: float = 40.0
     carve_period: float = 0.05
+    dig_forward_angle: float = 1.0
+    dig_sink_angle: float = 1.48
+    dig_slope: float = 0.35
+    dig_exit_clearance: float = 0.02
+    dig_timeout: float = 5.0
+    grind_down_angle: float = 0.175
     terrain_forces: str = "none"
     terrain_force_params: Mapping[str, Any] = field(default_factory=dict)
     joint_state_rate_hz: float = 100.0
@@ -318,6 +346,12 @@ class SimConfig:
             carve_step=p.non_negative("carve_step", d.carve_step, "m"),
             carve_full_force=p.non_negative("carve_full_force", d.carve_full_force, "N"),
             carve_period=p.positive("carve_period", d.carve_period, "s"),
+            dig_forward_angle=_angle(p, "dig_forward_angle", d.dig_forward_angle),
+            dig_sink_angle=_angle(p, "dig_sink_angle", d.dig_sink_angle),
+            dig_slope=_angle(p, "dig_slope", d.dig_slope, math.pi / 2),
+            dig_exit_clearance=p.non_negative("dig_exit_clearance", d.dig_exit_clearance, "m"),
+            dig_timeout=p.positive("dig_timeout", d.dig_timeout, "s"),
+            grind_down_angle=_angle(p, "grind_down_angle", d.grind_down_angle),
             terrain_forces=_non_empty(p, "terrain_forces", d.terrain_forces),
             terrain_force_params=dict(force_params),
             joint_state_rate_hz=p.positive("joint_state_rate_hz", d.joint_state_rate_hz, "Hz"),

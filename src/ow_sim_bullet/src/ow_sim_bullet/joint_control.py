@@ -8,6 +8,10 @@ Per joint and physics step (``dt``), the paper's effort PID position controller:
     effort = clip(p e + integral + d (v_set - v_next), +-effort_limit)
     damping = -c v_next                    (c: the URDF joint damping, a passive torque)
 
+For a continuous joint (:data:`~ow_description.description.CONTINUOUS_JOINTS`) ``e`` is wrapped
+into [-pi, pi), as ros_control's position controllers do for continuous joints: a set-point a
+whole turn away is where the joint is.
+
 ``v_next`` is the joint velocity at the end of the step, predicted from the full joint-space
 inertia and bias (gravity + Coriolis) of pinocchio with the effort and damping treated implicitly
 (``(M + dt C) v_next = M v + dt (p e + integral + d v_set - bias)``, ``C = diag(d + c)``, solved
@@ -21,6 +25,7 @@ a step is exactly ``-damping * v dt``.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 
@@ -28,7 +33,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ow_description.description import ALL_JOINTS
+from ow_description.description import ALL_JOINTS, CONTINUOUS_JOINTS, nearest_turn, wrap_angle
 from ow_sim_bullet.config import PidGains
 from ow_sim_bullet.errors import CommandError, ConfigError
 from ow_sim_bullet.joints import ClippedSetpoint
@@ -48,6 +53,10 @@ class JointController:
     Set-points never leave the joints' URDF position limits: a commanded set-point or trajectory
     point beyond a limit is clipped onto it (the commands return what they clipped), so a hostile
     or mistaken command can drive a joint onto its limit but never hold it pressed beyond it.
+    A continuous joint has no limit and is never clipped: a set-point for it, or a trajectory
+    (all its points alike), is moved by whole turns to start nearest the joint's set-point, so
+    the joint turns the shorter way round and its set-point stays comparable with its position
+    (as joint_trajectory_controller's wrap-around).
 
     Args:
         model: pinocchio model of the lander, gravity set (not modified).
@@ -91,6 +100,12 @@ class JointController:
         #: rad, the joints' URDF position limits (pinocchio's, in :attr:`names` order).
         self.lower = np.array(model.lowerPositionLimit, dtype=np.float64)
         self.upper = np.array(model.upperPositionLimit, dtype=np.float64)
+        #: True for the continuous joints, in :attr:`names` order.
+        self.continuous = np.array([j in CONTINUOUS_JOINTS for j in self.names])
+        self._continuous_index = np.flatnonzero(self.continuous)
+        # The bounds set-points are clipped to: the limits, none for a continuous joint.
+        self._setpoint_lower = np.where(self.continuous, -np.inf, self.lower)
+        self._setpoint_upper = np.where(self.continuous, np.inf, self.upper)
         self._negative_effort_limit = -self._effort_limit
         self._damping = np.array([joints[j].damping for j in self.names])
         self._negative_damping = -self._damping
@@ -135,7 +150,8 @@ class JointController:
     def set_setpoint(self, joint: str, position: float) -> ClippedSetpoint | None:
         """Command one joint's position set-point (rad); cancels its trajectory.
 
-        A set-point beyond the joint's URDF limits is clipped onto the nearer limit.
+        A set-point beyond the joint's URDF limits is clipped onto the nearer limit; one for a
+        continuous joint is moved by whole turns to the angle nearest its set-point now.
 
         Returns:
             What was clipped, or None when the set-point was within the limits.
@@ -149,6 +165,9 @@ class JointController:
             raise CommandError(msg)
         if self._trajectories.pop(joint, None) is not None:
             self._update_followed()
+        if self.continuous[k]:
+            self._setpoint[k] = float(nearest_turn(position, self._setpoint[k]))
+            return None
         lower, upper = float(self.lower[k]), float(self.upper[k])
         applied = min(max(position, lower), upper)
         self._setpoint[k] = applied
@@ -178,7 +197,9 @@ class JointController:
         trajectory they were following; it starts from their set-points.
 
         Points beyond a joint's URDF limits are followed as if on the limit: the set-points
-        sampled from the trajectory are clipped into the limits at every step.
+        sampled from the trajectory are clipped into the limits at every step. A continuous
+        joint's points are all moved by the whole turns that bring the first nearest its
+        set-point now, and never clipped.
 
         Returns:
             One entry per joint with points beyond its limits (its most extreme point), in the
@@ -188,8 +209,11 @@ class JointController:
             CommandError: the trajectory names an unknown joint.
         """
         columns = [self._joint(j) for j in trajectory.joints]
+        trajectory = self._turned(trajectory, columns)
         clipped = []
         for i, (joint, k) in enumerate(zip(trajectory.joints, columns, strict=True)):
+            if self.continuous[k]:
+                continue
             values = trajectory.positions[:, i]
             lower, upper = float(self.lower[k]), float(self.upper[k])
             low, high = float(values.min()), float(values.max())
@@ -204,6 +228,20 @@ class JointController:
         self._update_followed()
         return clipped
 
+    def _turned(self, trajectory: JointTrajectory, columns: list[int]) -> JointTrajectory:
+        """``trajectory`` with each continuous joint's points moved by the whole turns that put
+        its first point nearest the joint's set-point (``columns``: its joints' indices)."""
+        turning = [i for i, k in enumerate(columns) if self.continuous[k]]
+        if not turning:
+            return trajectory
+        first = trajectory.positions[0, turning]
+        shift = nearest_turn(first, self._setpoint[[columns[i] for i in turning]]) - first
+        if not shift.any():
+            return trajectory
+        positions = trajectory.positions.copy()
+        positions[:, turning] += shift
+        return dataclasses.replace(trajectory, positions=positions)
+
     def _update_followed(self) -> None:
         """Derive ``_followed`` from ``_trajectories`` (after any change to it)."""
         followed = []
@@ -216,7 +254,9 @@ class JointController:
             src, dst = np.array(pairs, dtype=np.intp).T
             followed.append((active, src, dst))
         self._followed = followed
-        self._followed_limits = [(self.lower[dst], self.upper[dst]) for _, _, dst in followed]
+        self._followed_limits = [
+            (self._setpoint_lower[dst], self._setpoint_upper[dst]) for _, _, dst in followed
+        ]
 
     def set_gains(self, joint: str, gains: PidGains) -> None:
         """Change one joint's PID gains now; the integral is kept, within the new clamp.
@@ -369,6 +409,11 @@ class JointController:
         # v + dt a: (M + dt C) a = tau - bias - C v.
         dt = self.dt
         error = self._setpoint - q
+        turn = error[self._continuous_index]
+        if np.count_nonzero(np.abs(turn) > math.pi):
+            # A continuous joint more than half a turn from its set-point: the set-point's angle
+            # is nearer the other way round (errors within half a turn are left bit for bit).
+            error[self._continuous_index] = wrap_angle(turn)
         tau_pi = self._kp * error + self._integral
         if self.gravity_feedforward:
             tau_pi = tau_pi + self._gravity(q)

@@ -36,7 +36,8 @@ class JointSample:
 
 @dataclass(frozen=True)
 class ClippedSetpoint:
-    """A set-point beyond a joint's URDF limits that was moved onto the limit.
+    """A set-point beyond a joint's URDF limits that was moved onto the limit (never one of a
+    continuous joint: it has no limits, see :class:`~ow_sim_bullet.joint_control.JointController`).
 
     Attributes:
         joint: joint name.

@@ -31,7 +31,7 @@ from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.conversions import JointFrame
 from ow_sim_bullet.scheduling import Periodic, Throttle
 from ow_sim_bullet.sim_core import BulletSim
-from ow_sim_bullet.tool_tracking import TOOLS, WRIST_FT_LINK, ToolSnapshot
+from ow_sim_bullet.tool_tracking import TOOLS, WRIST_FT_LINK, DigPhase, ToolSnapshot
 from owl_msgs.msg import ArmEndEffectorForceTorque
 
 #: physics steps whose outputs are written together when running faster than real time (a
@@ -49,6 +49,9 @@ FLUSH_STEPS = 10
 #: simulation 3.4 of its 8.7 CPU-s in a mission (docs/history/performance-journal.md, eleventh
 #: round).
 LOCKSTEP_FLUSH_STEPS = 50
+
+#: OceanWATERS' topic of the scoop's dig phase (ow_msgs/ScoopDigPhase, latched, at each change).
+DIG_PHASE_TOPIC = "/ow_dynamic_terrain/scoop_dig_phase"
 
 #: (topic, message class) of every output written with the wire publishers, in the order their
 #: queued messages are written: /clock first.
@@ -101,6 +104,8 @@ class SimOutputs:
         frames: the URDF's joint frames; the movable ones go on /tf.
         on_clock: called with the sim time (s) of the last /clock written, when it changed, at
             each :meth:`flush` (the node sets its own ROS time), or None.
+        on_dig_phase: called with the sim time (s) and the scoop's dig phase when it changes
+            (and by :meth:`publish_dig_phase`), or None.
     """
 
     def __init__(
@@ -111,8 +116,12 @@ class SimOutputs:
         terrain: MessagePublisher,
         frames: Sequence[JointFrame],
         on_clock: Callable[[float], None] | None = None,
+        on_dig_phase: Callable[[float, DigPhase], None] | None = None,
     ) -> None:
         self.sim = sim
+        self._on_dig_phase = on_dig_phase
+        #: the dig phase last told on_dig_phase.
+        self._dig_phase = sim.dig_phase
         self._publishers = [publishers[topic] for topic, _ in WIRE_TOPICS]
         self._clock_pub = publishers[CLOCK]
         self._joint_pub = publishers[JOINT_STATES]
@@ -199,7 +208,16 @@ class SimOutputs:
                 for tool, publisher in publishers.items():
                     if tool in self.snapshots:
                         publisher.publish(serializers[tool], self.snapshots[tool])
+        if sim.dig_phase is not self._dig_phase:
+            self.publish_dig_phase()
         self.publish_terrain_if_due()
+
+    def publish_dig_phase(self) -> None:
+        """Tell ``on_dig_phase`` the scoop's dig phase now (the node: at start, so that the
+        latched topic holds NOT_DIGGING from the beginning, as OceanWATERS')."""
+        self._dig_phase = self.sim.dig_phase
+        if self._on_dig_phase is not None:
+            self._on_dig_phase(self.sim.time, self._dig_phase)
 
     def publish_standing(self, terrain: bool = True) -> None:
         """Where the simulation stops (paused, held by a lockstep client, after ``~step``):

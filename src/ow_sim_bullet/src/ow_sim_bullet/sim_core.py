@@ -9,10 +9,11 @@ torques to pybullet:
   gravity feed-forward and the implicit damped step (the equations are in its module);
 * :class:`~ow_sim_bullet.tool_forces.ToolForces`: the forces on the tools, summed between
   snapshots;
-* :class:`~ow_sim_bullet.tool_tracking.ToolTracker`: the tools' depth and dig progress, the
-  terrain-force model's wrenches and the contacts as joint torques, the tools' snapshots and the
-  wrist F/T sensor;
-* :class:`~ow_sim_bullet.carving.TerrainCarver`: the height map and the carving under the tools.
+* :class:`~ow_sim_bullet.tool_tracking.ToolTracker`: the tools' depth and dig progress, when they
+  dig (the scoop's dig phase, the grinder grinding), the terrain-force model's wrenches and the
+  contacts as joint torques, the tools' snapshots and the wrist F/T sensor;
+* :class:`~ow_sim_bullet.carving.TerrainCarver`: the height map and the carving under the tools
+  (only those that dig: elsewhere the terrain is solid).
 
 Frames: the lander's ``base_link`` is fixed at the world origin, so world and base_link coincide.
 """
@@ -41,7 +42,7 @@ from ow_sim_bullet.faults import LOCK_DAMPER, JointLocks, WristFaults
 from ow_sim_bullet.joint_control import FloatArray, JointController
 from ow_sim_bullet.joints import ClippedSetpoint, JointSample
 from ow_sim_bullet.tool_forces import ToolForces
-from ow_sim_bullet.tool_tracking import TOOLS, ToolSnapshot, ToolTracker
+from ow_sim_bullet.tool_tracking import TOOLS, DigPhase, ToolSnapshot, ToolTracker
 from ow_sim_bullet.trajectory import JointTrajectory
 from ow_sim_bullet.urdf import physical_inertias, read_urdf_joints
 
@@ -161,7 +162,7 @@ class BulletSim:
             self.forces,
             com,
             self.carver,
-            config.terrain_material,
+            config,
             frames=(*self.link_index, "base_link"),
         )
         self._tool_links = tool_links
@@ -380,21 +381,29 @@ class BulletSim:
         self.forces.add_contacts(pb.getContactPoints(bodyA=self.robot, physicsClientId=self.client))
         if self.time >= self._next_carve - 1e-9:
             self._next_carve = self.time + self.config.carve_period
+            self.tracker.update_digging(q, self.time)
             self._carve()
 
     def _carve(self) -> None:
-        """Lower the terrain under the tools that reach it (:meth:`TerrainCarver.cut`)."""
-        carver = self.carver
+        """Lower the terrain under the tools that reach it (:meth:`TerrainCarver.cut`), as far
+        as it gives way to each (:meth:`ToolTracker.digs`)."""
+        carver, tracker = self.carver, self.tracker
         for tool, link in self._tool_links.items():
             low, high = pb.getAABB(self.robot, link, physicsClientId=self.client)
             if not carver.reaches(low, high):
                 continue
             state = pb.getLinkState(self.robot, link, physicsClientId=self.client)
             rotation = np.asarray(pb.getMatrixFromQuaternion(state[5])).reshape(3, 3)
-            carver.cut(tool, rotation, np.asarray(state[4]), self.forces.normal_force(tool))
+            normal_force = self.forces.normal_force(tool)
+            carver.cut(tool, rotation, np.asarray(state[4]), normal_force, tracker.digs(tool))
         carver.commit()
 
     # ------------------------------------------------------------------ outputs
+    @property
+    def dig_phase(self) -> DigPhase:
+        """The scoop's dig phase (decided at each carve update)."""
+        return self.tracker.dig.phase
+
     @property
     def terrain_version(self) -> int:
         """Incremented whenever the terrain changes (carving or replacement)."""

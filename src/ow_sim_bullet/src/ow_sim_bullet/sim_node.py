@@ -13,9 +13,10 @@ from std_srvs.srv import Trigger, TriggerResponse
 
 from ow_dem_bridge.api import REMOTE_MODEL_NAME
 from ow_dem_bridge.remote_node import make_remote_model
-from ow_description.description import URDF_PATH
+from ow_description.description import SCOOP_TIP_FRAME, URDF_PATH
 from ow_description.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
+from ow_msgs.msg import ScoopDigPhase
 from ow_msgs.srv import SetTerrain, SetTerrainResponse, StepSimulation, StepSimulationResponse
 from ow_runtime.node import init_node, spin
 from ow_sim_bullet import conversions, outputs, wire
@@ -27,6 +28,7 @@ from ow_sim_bullet.reconfigure_node import SimReconfigure
 from ow_sim_bullet.runner import SimRunner
 from ow_sim_bullet.sim_core import BulletSim, make_force_model
 from ow_sim_bullet.terrains import parse_terrain_spec
+from ow_sim_bullet.tool_tracking import DigPhase
 
 
 class SimNode:
@@ -57,6 +59,9 @@ class SimNode:
             COM (zero when no model ran).
         /sim/terrain (ow_msgs/HeightMap, latched): the terrain; republished after carving at
             most every ``~terrain_publish_period`` s of simulation time.
+        /ow_dynamic_terrain/scoop_dig_phase (ow_msgs/ScoopDigPhase, latched): the scoop's dig
+            phase (OceanWATERS' topic and fields), NOT_DIGGING at start, then at each change;
+            the terrain gives way to the scoop only while it digs.
         /flags/joint_states (ow_msgs/JointStatesFlag): locked joints, with /joint_states.
     Faults (``/faults/parameter_updates``) and PID gains (dynamic_reconfigure): see
     :class:`~ow_sim_bullet.reconfigure_node.SimReconfigure`.
@@ -96,6 +101,9 @@ class SimNode:
         # simulation down instead of losing messages.
         publishers = {topic: _batch_publisher(topic, cls) for topic, cls in outputs.WIRE_TOPICS}
         terrain = rospy.Publisher("~terrain", HeightMapMsg, queue_size=1, latch=True)
+        self._dig_phase = rospy.Publisher(
+            outputs.DIG_PHASE_TOPIC, ScoopDigPhase, queue_size=1, latch=True
+        )
         # With /use_sim_time rospy subscribes every node to /clock, this one too. The sim sets its
         # rospy time itself instead: a thread receiving /clock would take the GIL at every tick.
         own_clock = getattr(rospy.impl.simtime, "_clock_sub", None)
@@ -107,8 +115,11 @@ class SimNode:
             [conversions.transform_msg(f, 0.0, 0.0) for f in frames if f.axis is None]
         )
         on_clock = _set_rostime if own_clock is not None else None
-        self.outputs = outputs.SimOutputs(self.sim, config, publishers, terrain, frames, on_clock)
+        self.outputs = outputs.SimOutputs(
+            self.sim, config, publishers, terrain, frames, on_clock, self._publish_dig_phase
+        )
         self.outputs.publish_terrain()
+        self.outputs.publish_dig_phase()
         rtf, paused = config.real_time_factor, config.start_paused
         self.runner = SimRunner(
             self.sim, self.outputs, rtf, paused, rospy.is_shutdown, rospy.logerr
@@ -128,6 +139,13 @@ class SimNode:
         return parse_terrain_spec(
             spec, c.terrain_file_resolution, c.terrain_file_center, c.terrain_png_height_range
         )
+
+    def _publish_dig_phase(self, sim_time: float, phase: DigPhase) -> None:
+        """Publish the scoop's dig phase (on the simulation thread, at a change)."""
+        msg = ScoopDigPhase(digging=phase.digging, phase=int(phase))
+        msg.header.stamp = rospy.Time(*conversions.stamp_parts(sim_time))
+        msg.header.frame_id = SCOOP_TIP_FRAME
+        self._dig_phase.publish(msg)
 
     # ------------------------------------------------------------------ callbacks
     def _on_reset(self, _: Any) -> TriggerResponse:

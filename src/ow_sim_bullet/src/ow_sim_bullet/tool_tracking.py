@@ -1,5 +1,6 @@
-"""The tools in the terrain: depth and dig progress, the terrain-force model's wrenches and the
-tools' contacts as joint torques, the tools' wrench snapshots and the wrist force/torque sensor.
+"""The tools in the terrain: depth and dig progress, when they dig (the scoop's dig phase, the
+grinder grinding), the terrain-force model's wrenches and the tools' contacts as joint torques, the
+tools' wrench snapshots and the wrist force/torque sensor.
 
 No pybullet here: the caller hands over the simulator's contact points after each step (the sums
 are :class:`~ow_sim_bullet.tool_forces.ToolForces`'). Frames:
@@ -9,7 +10,9 @@ are :class:`~ow_sim_bullet.tool_forces.ToolForces`'). Frames:
 
 from __future__ import annotations
 
+import enum
 import math
+from collections import deque
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Protocol
@@ -20,6 +23,8 @@ import pinocchio as pin
 
 from ow_dem_bridge.api import TerrainForceModel, ToolState, Wrench
 from ow_description.description import GRINDER_LINK, GRINDER_TIP_FRAME, SCOOP_LINK, SCOOP_TIP_FRAME
+from ow_sim_bullet.carving import MOVING_SPEED
+from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.joints import JointSample
 from ow_sim_bullet.tool_forces import ToolForces, cross
 
@@ -39,12 +44,147 @@ TOOLS: dict[str, tuple[str, str]] = {
 }
 
 
+#: s of sim time over which a tool tip's velocity is measured for its dig (its displacement
+#: over this time): longer than the stick-slip of a tool cutting at each carve update, short
+#: against the phases of a dig.
+MOTION_WINDOW_S = 0.2
+
+
+class DigPhase(enum.IntEnum):
+    """The scoop's dig phase, OceanWATERS' ``ow_dynamic_terrain/scoop_dig_phase`` (same values)."""
+
+    NOT_DIGGING = 0
+    SINKING = 1
+    PLOWING = 2
+    RETRACTING = 3
+
+    @property
+    def digging(self) -> bool:
+        """Whether the scoop digs (the terrain gives way to it): any phase but NOT_DIGGING."""
+        return self is not DigPhase.NOT_DIGGING
+
+
+class TipMotion:
+    """A tool tip's velocity from its positions over the last :data:`MOTION_WINDOW_S`."""
+
+    def __init__(self) -> None:
+        self._samples: deque[tuple[float, FloatArray]] = deque()
+
+    def reset(self) -> None:
+        """Forget the positions."""
+        self._samples.clear()
+
+    def add(self, now: float, tip: FloatArray) -> FloatArray | None:
+        """Record the tip at ``now`` (s; (3,) m, base_link); its velocity (3,) m/s over the
+        window (from the newest position at least :data:`MOTION_WINDOW_S` old, else the
+        oldest), None before a second position."""
+        samples = self._samples
+        samples.append((now, tip))
+        while len(samples) > 2 and now - samples[1][0] >= MOTION_WINDOW_S - 1e-9:
+            samples.popleft()
+        if len(samples) < 2:
+            return None
+        then, old = samples[0]
+        return (tip - old) / (now - then)
+
+
+class ScoopDigDetector:
+    """The scoop's dig phase from its tip's pose and motion (OceanWATERS' DigStateMachine,
+    spec 14.2, with thresholds for this arm's digs; the terrain gives way to the scoop only in
+    a dig).
+
+    With ``forward`` the scoop's forward axis (+x of l_scoop_tip, out of its mouth), ``b`` the
+    cosine of the angle between its bottom normal (+z) and straight down, and the tip's
+    velocity ``v`` over :data:`MOTION_WINDOW_S`, the scoop moves *mouth first* when ``|v|`` >
+    :data:`~ow_sim_bullet.carving.MOVING_SPEED` and the angle between ``v`` and ``forward`` is
+    at most ``dig_forward_angle``. Transitions, at each :meth:`update`:
+
+    * NOT_DIGGING -> SINKING: mouth first, ``forward`` pointing down, ``b`` >
+      cos(``dig_sink_angle``), the tip in the terrain or less than ``dig_exit_clearance``
+      above it (at and ahead of it: a dig starts at the ground, not in the air);
+    * SINKING -> PLOWING: mouth first, the tip's path descending less steeply than
+      ``dig_slope``;
+    * SINKING or PLOWING -> RETRACTING: the tip rising more steeply than ``dig_slope``;
+    * RETRACTING -> NOT_DIGGING: the tip ``dig_exit_clearance`` above the terrain at and
+      ahead of it, and no longer mouth first;
+    * any dig phase -> NOT_DIGGING: ``dig_timeout`` s with the tip standing still or out of
+      the terrain (OceanWATERS times each phase from its start: 12, 10 and 5 s, shorter than
+      this arm's slower digs).
+
+    Args:
+        config: the ``dig_*`` thresholds.
+    """
+
+    def __init__(self, config: SimConfig) -> None:
+        self._cos_forward = math.cos(config.dig_forward_angle)
+        self._cos_sink = math.cos(config.dig_sink_angle)
+        self._sin_slope = math.sin(config.dig_slope)
+        self._exit_clearance = config.dig_exit_clearance
+        self._timeout = config.dig_timeout
+        self._motion = TipMotion()
+        self.phase = DigPhase.NOT_DIGGING
+        #: s of sim time the scoop last moved in the terrain while digging.
+        self._active_at = 0.0
+
+    def reset(self) -> None:
+        """NOT_DIGGING, the tip's motion forgotten."""
+        self._motion.reset()
+        self.phase = DigPhase.NOT_DIGGING
+
+    def update(
+        self, now: float, rotation: FloatArray, tip: FloatArray, terrain: TerrainDepth
+    ) -> DigPhase:
+        """The phase after the scoop tip's pose at ``now`` (s of sim time).
+
+        Args:
+            now: s of sim time.
+            rotation: (3, 3), orientation of l_scoop_tip in base_link.
+            tip: (3,) m, l_scoop_tip in base_link.
+            terrain: the terrain the tip digs.
+        """
+        velocity = self._motion.add(now, tip)
+        if velocity is None:
+            return self.phase
+        vx, vy, vz = velocity.tolist()
+        speed = math.sqrt(vx * vx + vy * vy + vz * vz)
+        moving = speed > MOVING_SPEED
+        rising = moving and vz > self._sin_slope * speed
+        forward = rotation[:, 0]
+        mouth_first = moving and float(forward @ velocity) > self._cos_forward * speed
+        _, surface = terrain.surface_ahead(tip, velocity)
+        clear = float(tip[2]) - surface > self._exit_clearance
+        phase = self.phase
+        if phase is DigPhase.NOT_DIGGING:
+            bottom_down = -float(rotation[2, 2])
+            if mouth_first and not clear and forward[2] < 0.0 and bottom_down > self._cos_sink:
+                phase = DigPhase.SINKING
+        elif phase is DigPhase.RETRACTING:
+            if clear and not mouth_first:
+                phase = DigPhase.NOT_DIGGING
+        elif rising:
+            phase = DigPhase.RETRACTING
+        elif phase is DigPhase.SINKING and mouth_first and vz >= -self._sin_slope * speed:
+            phase = DigPhase.PLOWING
+        if phase.digging:
+            if not self.phase.digging or (moving and not clear):
+                self._active_at = now
+            elif now - self._active_at >= self._timeout - 1e-9:
+                phase = DigPhase.NOT_DIGGING
+        self.phase = phase
+        return phase
+
+
 class TerrainDepth(Protocol):
     """The terrain as the tools' depth reads it (:class:`ow_sim_bullet.carving.TerrainCarver`)."""
 
     def depth(self, point: FloatArray, velocity: FloatArray) -> tuple[float, float]:
         """(terrain z under ``point``, depth of ``point`` below the terrain at and ahead of it
         along ``velocity``), m."""
+        ...
+
+    def surface_ahead(self, point: FloatArray, velocity: FloatArray) -> tuple[float, float]:
+        """(terrain z under ``point``, highest terrain z at and ahead of it along
+        ``velocity``), m: the terrain :meth:`depth` measures against."""
         ...
 
     def above(self, point: FloatArray) -> bool:
@@ -118,9 +258,15 @@ class ToolTracker:
         forces: the forces on the tools (the caller adds each step's contacts).
         com: tool -> (3,) m, its link's centre of mass in the link frame.
         terrain: the terrain, for the tools' depth.
-        material: terrain material id given to the terrain-force model.
+        config: the terrain material id given to the terrain-force model
+            (``terrain_material``) and when the tools dig (``dig_*``, ``grind_down_angle``).
         frames: the frames :meth:`link_poses` reports (those the model has); must include the
             tools' links and tips and :data:`WRIST_FT_LINK`.
+
+    Attributes:
+        dig: the scoop's dig phase (decided at each :meth:`update_digging`).
+        grinding: whether the grinder grinds: its axis within ``grind_down_angle`` of straight
+            down and its tip moving (OceanWATERS lowers the terrain under the grinder then).
     """
 
     def __init__(
@@ -129,13 +275,17 @@ class ToolTracker:
         forces: ToolForces,
         com: Mapping[str, FloatArray],
         terrain: TerrainDepth,
-        material: int,
+        config: SimConfig,
         frames: Iterable[str],
     ) -> None:
         self._model = model
         self._data = model.createData()
         self._terrain = terrain
-        self.material = material
+        self.material = config.terrain_material
+        self.dig = ScoopDigDetector(config)
+        self.grinding = False
+        self._grinder_motion = TipMotion()
+        self._cos_grind_down = math.cos(config.grind_down_angle)
         self._tools = {tool: _Dig(com[tool]) for tool in TOOLS}
         self.forces = forces
         self._frame_id = {name: model.getFrameId(name) for name in frames if model.existFrame(name)}
@@ -143,13 +293,16 @@ class ToolTracker:
         self._placed: tuple[FloatArray | None, FloatArray | None] = (None, None)
 
     def reset(self) -> None:
-        """Forget the forces, contacts and digs."""
+        """Forget the forces, contacts and digs (NOT_DIGGING, the grinder not grinding)."""
         self.forces.reset()
         for track in self._tools.values():
             track.progress = 0.0
             track.last_tip = None
             track.state = None
             track.model_wrench = None
+        self.dig.reset()
+        self._grinder_motion.reset()
+        self.grinding = False
 
     # ------------------------------------------------------------------ kinematics
     def place(self, q: FloatArray, v: FloatArray | None = None) -> None:
@@ -192,6 +345,26 @@ class ToolTracker:
         )
 
     # ------------------------------------------------------------------ digging
+    def update_digging(self, q: FloatArray, now: float) -> None:
+        """Decide the scoop's dig phase (:attr:`dig`) and whether the grinder grinds
+        (:attr:`grinding`) with the joints at ``q`` (rad) at ``now`` (s of sim time)."""
+        self.place(q)
+        scoop = self._data.oMf[self._frame_id[SCOOP_TIP_FRAME]]
+        self.dig.update(now, np.asarray(scoop.rotation), np.array(scoop.translation), self._terrain)
+        grinder = self._data.oMf[self._frame_id[GRINDER_TIP_FRAME]]
+        velocity = self._grinder_motion.add(now, np.array(grinder.translation))
+        # The grinder's axis is +x of its tip frame: it points down when -z . x is near 1.
+        self.grinding = (
+            velocity is not None
+            and math.sqrt(float(velocity @ velocity)) > MOVING_SPEED
+            and -float(grinder.rotation[2, 0]) > self._cos_grind_down
+        )
+
+    def digs(self, tool: str) -> bool:
+        """Whether ``tool`` digs now: the terrain gives way to it (the scoop in a dig phase,
+        the grinder grinding); elsewhere the terrain is solid."""
+        return self.dig.phase.digging if tool == "scoop" else self.grinding
+
     def track_dig(
         self,
         tool: str,

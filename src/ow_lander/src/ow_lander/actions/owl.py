@@ -2,23 +2,27 @@
 
 A goal arrives as a flat ``{field: value}`` mapping (nested message fields joined with dots:
 ``pose.position.x``; arrays as lists; see :func:`ow_lander.conversions.goal_to_dict`).
-:func:`validate_goal` checks every field before anything moves and raises
-:class:`~ow_lander.errors.GoalError` naming the field, its value and the limit;
+:func:`validate_goal` checks what OceanWATERS (HEAD) checks, with its texts, and what it lets
+through by mistake (a NaN), and raises :class:`~ow_lander.errors.GoalError`;
 :func:`to_request` turns a valid goal into an :class:`ActionRequest`: the operation of
-:class:`~ow_lander.operations.planner.Operations` that carries it out, with its request.
-:func:`arm_state` and :func:`action_values` build the feedback and result fields from a joint
-state and the wrist force/torque.
+:class:`~ow_lander.operations.planner.Operations` that carries it out, with its request and what
+its end is checked against (:mod:`ow_lander.actions.outcomes`). :func:`arm_state` and
+:func:`action_values` build the feedback and result fields from a joint state and the wrist
+force/torque.
 
 Frames (OceanWATERS): ``frame`` 0 = base_link, 1 = the tool frame ``l_scoop_tip`` at the start
-of the action (a point or pose in it is an offset from the tool); ``relative`` with frame 0 adds
-the goal's position to the tool's position (and turns its orientation by the goal's rotation).
-Joint indices of ArmMoveJoint(s): 0..5 from the shoulder to the scoop (:data:`ARM_JOINTS`).
+of the action (a point or pose in it is an offset from the tool; ``relative`` then changes
+nothing: the tool is at the origin of its own frame); ``relative`` with frame 0 adds the goal's
+position to the tool's position and turns the tool's orientation by the goal's rotation about
+the tool's own axes (``R_tool @ R_goal``). Joint indices of ArmMoveJoint(s): 0..5 from the
+shoulder to the scoop (:data:`ARM_JOINTS`). Depths, lengths, heights, distances and overdrives
+are not checked here (OceanWATERS never checks them): what cannot be planned fails in planning.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -30,45 +34,82 @@ from ow_description.model import LanderModel
 from ow_lander.errors import GoalError
 from ow_runtime.names import ARM_ACTIONS
 
+__all__ = [
+    "ARM_ACTIONS",
+    "CARTESIAN_TOLERANCE",
+    "FRAMES",
+    "JOINT_TOLERANCE",
+    "ActionRequest",
+    "ArmState",
+    "action_values",
+    "angles_reached",
+    "arm_state",
+    "pose_error",
+    "quaternion_from_rotation",
+    "rotation_between",
+    "rotation_from_quaternion",
+    "target_pose",
+    "to_request",
+    "validate_goal",
+]
+
 FloatArray = npt.NDArray[np.float64]
 
 #: m and rad, how close a Cartesian move must end to its target (OceanWATERS).
 CARTESIAN_TOLERANCE = (0.01, 0.05)
+#: rad, how close each arm joint must end to its target, modulo a turn (OceanWATERS).
+JOINT_TOLERANCE = 0.05
 #: Frames a goal's ``frame`` may name.
 FRAMES = {0: "base_link", 1: SCOOP_TIP_FRAME}
+#: The scoop bottom's outward normal in the tool frame (ArmFindSurface turns it against the
+#: surface normal).
+SCOOP_BOTTOM = np.array([0.0, 0.0, 1.0])
 
 
 @dataclass
 class ActionRequest:
-    """What carries out one goal.
+    """What carries out one goal, and what its end is checked against.
 
     Attributes:
         operation: the :meth:`~ow_lander.operations.planner.Operations.plan` operation name.
         request: its request (base_link, m, rad).
         wrench_limits: (N, N m) force and torque thresholds of a guarded action, or None.
-        target_pose: (4, 4) ``X_base_tip`` a Cartesian move must end at (checked), or None.
-        surface_point: (3,) m, base_link, ArmFindSurface's expected surface point, or None.
+        target_pose: (4, 4) ``X_base_tip`` a Cartesian move must end at, or None.
+        target_angles: (6,) rad a joint move must end at (modulo a turn), or None.
+        surface_point: (3,) m, base_link, ArmFindSurface's estimated surface point, or None.
+        surface_normal: (3,) unit, base_link, ArmFindSurface's surface normal, or None.
+        setup_point: (3,) m, ArmFindSurface's start of the approach (surface + distance normal).
+        approach_end: (3,) m, where ArmFindSurface's approach ends unless a threshold stops it.
+        notes: remarks for the log.
     """
 
     operation: str
     request: dict[str, Any]
     wrench_limits: tuple[float, float] | None = None
     target_pose: FloatArray | None = None
+    target_angles: FloatArray | None = None
     surface_point: FloatArray | None = None
+    surface_normal: FloatArray | None = None
+    setup_point: FloatArray | None = None
+    approach_end: FloatArray | None = None
     notes: list[str] = field(default_factory=list)
 
-
-def _fail(name: str, value: Any, limit: str) -> GoalError:
-    return GoalError(f"{name}={value!r} {limit}")
+    @property
+    def breaches_at_once(self) -> bool:
+        """OceanWATERS' guard trips when ``|F| >= force_threshold`` or ``|T| >=
+        torque_threshold``: a threshold <= 0 (the message default is 0) trips at its first
+        check, so the guarded motion does not move."""
+        return self.wrench_limits is not None and min(self.wrench_limits) <= 0.0
 
 
 def validate_goal(action: str, goal: Mapping[str, Any]) -> None:
-    """Check every field of ``goal`` (flat, see the module docstring) of ``action``.
+    """Check ``goal`` (flat, see the module docstring) of ``action`` as OceanWATERS does, and
+    refuse the NaNs it lets through.
 
     Raises:
-        GoalError: unknown action, a value not finite, a joint index outside 0..5, a frame
-            other than 0/1, not 6 angles, a zero normal or quaternion, a threshold or distance
-            not positive (the message names the field, its value and the limit).
+        GoalError: unknown action; a value that is NaN (or infinite, thresholds excepted: an
+            infinite threshold never trips); with OceanWATERS' texts: a frame other than 0/1,
+            a joint index outside 0..5, not 6 angles, a zero quaternion or normal.
     """
     if action not in ARM_ACTIONS:
         msg = f"unknown action {action!r}; known: {', '.join(ARM_ACTIONS)}"
@@ -76,26 +117,31 @@ def validate_goal(action: str, goal: Mapping[str, Any]) -> None:
     for name, value in goal.items():
         values = value if isinstance(value, list | tuple) else [value]
         for i, v in enumerate(values):
-            if isinstance(v, float) and not math.isfinite(v):
+            if not isinstance(v, float) or math.isfinite(v):
+                continue
+            if math.isnan(v) or not name.endswith("_threshold"):
                 label = f"{name}[{i}]" if isinstance(value, list | tuple) else name
-                raise _fail(label, v, "is not finite")
-    if "joint" in goal and not 0 <= goal["joint"] < len(ARM_JOINTS):
-        raise _fail("joint", goal["joint"], "is outside the joint indices 0..5")
+                msg = f"{label}={v!r} is not finite"
+                raise GoalError(msg)
     if "frame" in goal and goal["frame"] not in FRAMES:
-        raise _fail("frame", goal["frame"], "is neither 0 (base_link) nor 1 (tool)")
+        msg = f"Unrecognized frame index {goal['frame']}. Options are {FRAMES}"
+        raise GoalError(msg)
+    if "joint" in goal and not 0 <= goal["joint"] < len(ARM_JOINTS):
+        msg = f"Provided joint index is not within range: joint={goal['joint']}, not in 0..5"
+        raise GoalError(msg)
     if "angles" in goal and len(goal["angles"]) != len(ARM_JOINTS):
-        raise _fail("angles", list(goal["angles"]), "must have 6 values (shoulder to scoop)")
-    for name in ("force_threshold", "torque_threshold", "distance"):
-        if name in goal and not goal[name] > 0:
-            raise _fail(name, goal[name], "must be > 0")
-    for name in ("overdrive", "height"):
-        if name in goal and goal[name] < 0:
-            raise _fail(name, goal[name], "must be >= 0")
-    if "normal.x" in goal and _norm(goal, "normal", "xyz") < 1e-6:
-        raise _fail("normal", _vector(goal, "normal", "xyz").tolist(), "is a zero vector")
-    if "pose.orientation.w" in goal and _norm(goal, "pose.orientation", "xyzw") < 1e-6:
-        value = _vector(goal, "pose.orientation", "xyzw").tolist()
-        raise _fail("pose.orientation", value, "is a zero quaternion")
+        msg = (
+            "Number of angle positions provided does not much the number of joints in the arm "
+            f"move group: angles={list(goal['angles'])} has {len(goal['angles'])} values, "
+            f"{len(ARM_JOINTS)} needed"
+        )
+        raise GoalError(msg)
+    if "pose.orientation.w" in goal and _norm(goal, "pose.orientation", "xyzw") == 0.0:
+        msg = "Orientation is the zero-quaternion and cannot represent a rotation"
+        raise GoalError(msg)
+    if "normal.x" in goal and _norm(goal, "normal", "xyz") == 0.0:
+        msg = "Normal is the zero-vector and cannot represent a direction"
+        raise GoalError(msg)
 
 
 def _vector(goal: Mapping[str, Any], prefix: str, axes: str) -> FloatArray:
@@ -135,6 +181,28 @@ def quaternion_from_rotation(R: FloatArray) -> FloatArray:
     return np.array([x, y, z, w])
 
 
+def rotation_between(a: FloatArray, b: FloatArray) -> FloatArray:
+    """(3, 3) the smallest rotation taking direction ``a`` (3,) onto ``b`` (3,); for opposite
+    directions, the half turn about ``a`` x (the base axis ``a`` is least along), as
+    OceanWATERS picks it (so the scoop turned against an upward normal keeps its x along
+    base_link's x)."""
+    a = np.asarray(a, dtype=np.float64) / np.linalg.norm(a)
+    b = np.asarray(b, dtype=np.float64) / np.linalg.norm(b)
+    c = float(a @ b)
+    if math.isclose(c, -1.0):
+        x, y, z = np.abs(a)
+        if x < y:
+            basis = np.eye(3)[0] if x < z else np.eye(3)[2]
+        else:
+            basis = np.eye(3)[1] if y < z else np.eye(3)[2]
+        axis = np.cross(a, basis)
+        axis /= np.linalg.norm(axis)
+        return 2 * np.outer(axis, axis) - np.eye(3)
+    v = np.cross(a, b)
+    K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + K + K @ K / (1 + c)
+
+
 def target_pose(goal: Mapping[str, Any], X_base_tip: FloatArray) -> FloatArray:
     """(4, 4) ``X_base_target`` of a Cartesian goal (its ``pose`` in its frame)."""
     X = np.eye(4)
@@ -144,7 +212,7 @@ def target_pose(goal: Mapping[str, Any], X_base_tip: FloatArray) -> FloatArray:
         return X_base_tip @ X
     if goal["relative"]:
         X[:3, 3] += X_base_tip[:3, 3]
-        X[:3, :3] = X[:3, :3] @ X_base_tip[:3, :3]
+        X[:3, :3] = X_base_tip[:3, :3] @ X[:3, :3]
     return X
 
 
@@ -156,29 +224,37 @@ def pose_error(X_target: FloatArray, X_measured: FloatArray) -> tuple[float, flo
     return distance, angle
 
 
+def angles_reached(
+    target: FloatArray, angles: FloatArray, tolerance: float = JOINT_TOLERANCE
+) -> bool:
+    """Whether every joint of ``angles`` (6,) rad is within ``tolerance`` rad of ``target``
+    (6,) rad, a whole turn apart counting as the same (OceanWATERS compares modulo 2 pi)."""
+    difference = np.asarray(angles, dtype=np.float64) - np.asarray(target, dtype=np.float64)
+    wrapped = (difference + math.pi) % (2 * math.pi) - math.pi
+    return bool(np.all(np.abs(wrapped) <= tolerance))
+
+
 def to_request(
     action: str,
     goal: Mapping[str, Any],
     arm: FloatArray,
     X_base_tip: FloatArray,
-    yaw: Callable[[float, float], float],
 ) -> ActionRequest:
     """The operation and request carrying out a valid ``goal`` of ``action``, from the arm at
-    ``arm`` (6,) rad with the tool at ``X_base_tip`` (4, 4); ``yaw(x, y)`` is the shoulder yaw
-    (rad) aiming the arm at a point (the heading of a linear cut)."""
+    ``arm`` (6,) rad with the tool at ``X_base_tip`` (4, 4)."""
+    limits = _limits(goal)
     if action in ("ArmUnstow", "ArmStow"):
         return ActionRequest(action[3:].lower(), {"delete_prev_traj": False})
     if action == "ArmMoveJoint":
         target = np.array(arm, dtype=np.float64)
         j = int(goal["joint"])
         target[j] = target[j] + goal["angle"] if goal["relative"] else goal["angle"]
-        return ActionRequest("move_joints", {"angles": target.tolist()})
-    limits = _limits(goal)
+        return ActionRequest("move_joints", {"angles": target.tolist()}, target_angles=target)
     if action.startswith("ArmMoveJoints"):
         angles = np.asarray(goal["angles"], dtype=np.float64)
         target = arm + angles if goal["relative"] else angles
         request = {"angles": target.tolist(), "guarded": limits is not None}
-        return ActionRequest("move_joints", request, limits)
+        return ActionRequest("move_joints", request, limits, target_angles=target)
     if action.startswith("ArmMoveCartesian"):
         X = target_pose(goal, X_base_tip)
         request = {
@@ -188,25 +264,11 @@ def to_request(
         }
         return ActionRequest("move_cartesian", request, limits, target_pose=X)
     if action == "ArmFindSurface":
-        point = _point(goal, "position", X_base_tip)
-        normal = _vector(goal, "normal", "xyz")
-        normal /= np.linalg.norm(normal)
-        start = point - goal["distance"] * normal
-        # The paper's guarded move takes the surface normal (up): the opposite of the approach.
-        request = {
-            "use_defaults": False,
-            "x": start[0],
-            "y": start[1],
-            "z": start[2],
-            "direction_x": -normal[0],
-            "direction_y": -normal[1],
-            "direction_z": -normal[2],
-            "search_distance": goal["distance"] + goal["overdrive"],
-        }
-        return ActionRequest("guarded_move", request, limits, surface_point=point)
+        return _find_surface(goal, X_base_tip, limits)
     if action == "TaskGrind":
         request = {
             "use_defaults": False,
+            "centred": True,
             "x": goal["x_start"],
             "y": goal["y_start"],
             "depth": goal["depth"],
@@ -221,16 +283,55 @@ def to_request(
     if action == "TaskDiscardSample":
         x, y, z = point + np.array([0.0, 0.0, goal["height"]])
         return ActionRequest("discard", {"use_defaults": False, "x": x, "y": y, "z": z})
-    request = {"use_defaults": False, "depth": goal["depth"], "ground_position": point[2]}
+    request = {
+        "use_defaults": False,
+        "centred": True,
+        "x": point[0],
+        "y": point[1],
+        "depth": goal["depth"],
+        "ground_position": point[2],
+    }
     if action == "TaskScoopCircular":
-        request.update(x=point[0], y=point[1], parallel=bool(goal["parallel"]))
+        request["parallel"] = bool(goal["parallel"])
         return ActionRequest("dig_circular", request)
-    # TaskScoopLinear: OceanWATERS' point is the middle of the cut, ours its start.
-    heading = yaw(float(point[0]), float(point[1]))
-    half = goal["length"] / 2
-    x, y = point[0] - half * math.cos(heading), point[1] - half * math.sin(heading)
-    request.update(x=x, y=y, length=goal["length"])
+    request["length"] = goal["length"]  # TaskScoopLinear: the point is the middle of the cut
     return ActionRequest("dig_linear", request)
+
+
+def _find_surface(
+    goal: Mapping[str, Any], X_base_tip: FloatArray, limits: tuple[float, float] | None
+) -> ActionRequest:
+    """ArmFindSurface: the scoop bottom turned against the surface ``normal`` (base_link in
+    every frame), from ``position + distance normal`` straight to ``position - overdrive
+    normal``. With a threshold that trips at once, only the move to the setup pose."""
+    point = _point(goal, "position", X_base_tip)
+    normal = _vector(goal, "normal", "xyz")
+    normal /= np.linalg.norm(normal)
+    rotation = rotation_between(SCOOP_BOTTOM, -normal)
+    setup = point + goal["distance"] * normal
+    end = point - goal["overdrive"] * normal
+    checks = {
+        "surface_point": point,
+        "surface_normal": normal,
+        "setup_point": setup,
+        "approach_end": end,
+    }
+    if limits is not None and min(limits) <= 0.0:
+        request = {"position": setup.tolist(), "rotation": rotation.tolist(), "guarded": False}
+        return ActionRequest("move_cartesian", request, limits, **checks)
+    request = {
+        "use_defaults": False,
+        "x": setup[0],
+        "y": setup[1],
+        "z": setup[2],
+        # The paper's guarded move takes the surface normal and descends against it.
+        "direction_x": normal[0],
+        "direction_y": normal[1],
+        "direction_z": normal[2],
+        "search_distance": goal["distance"] + goal["overdrive"],
+        "rotation": rotation.tolist(),
+    }
+    return ActionRequest("guarded_move", request, limits, **checks)
 
 
 def _limits(goal: Mapping[str, Any]) -> tuple[float, float] | None:

@@ -19,6 +19,7 @@ from ow_description.trajectory import Trajectory, TrajectoryStore, read_csv
 from ow_lander import conversions as conv
 from ow_lander.arm_services.action_servers import ArmActions
 from ow_lander.arm_services.execution import ArmExecutor
+from ow_lander.arm_services.guarded_move_action import GuardedMoveServer
 from ow_lander.arm_services.terrain import TerrainFeed
 from ow_lander.config import ArmServicesConfig
 from ow_lander.errors import REQUEST_ERRORS, ConfigError
@@ -222,6 +223,7 @@ def main() -> None:
         config = ArmServicesConfig.from_dict(rospy.get_param("~", {}))
         node = ArmServicesNode(config)
         ArmActions(node)
+        GuardedMoveServer(node)
     except (ConfigError, TrajectoryError) as error:
         rospy.logfatal("arm_services: %s", error)
         sys.exit(1)

@@ -9,11 +9,12 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
-import actionlib
 from actionlib.action_server import nop_cb
 
 import owl_msgs.msg as owl
+from ow_lander.actions.outcomes import ARM_STOPPED, NOTHING_TO_STOP
 from ow_lander.arm_services.execution import ArmExecutor
+from ow_runtime.action_server import ActionServer
 
 #: actionlib's own handling of a goal or cancel message (``internal_*_callback``).
 Take = Callable[[Any], None]
@@ -21,8 +22,9 @@ Take = Callable[[Any], None]
 Around = Callable[[Take, Any], None]
 
 
-class PausingActionServer(actionlib.ActionServer):
-    """An ``actionlib.ActionServer`` whose taking of each goal (``around_goal``) and cancel
+class PausingActionServer(ActionServer):
+    """An action server (:class:`~ow_runtime.action_server.ActionServer`: every goal's end
+    reaches actionlib's own clients) whose taking of each goal (``around_goal``) and cancel
     (``around_cancel``) message is wrapped: the wrapper may pause the simulation before
     actionlib takes the message and stamps the status it publishes. Not started (``start``)."""
 
@@ -53,20 +55,27 @@ class PausingActionServer(actionlib.ActionServer):
 
 
 class StopRequests:
-    """``ArmStop`` (stops whatever arm execution runs, a goal's or a service's; aborts when none
-    does) and the cancels of the arm actions' running goal, each taken with the simulation
-    paused ahead (:class:`~ow_lander.arm_services.stop_clock.StopPause`) when an execution may stop.
+    """``ArmStop`` (OceanWATERS: stops whatever arm execution runs, a goal's or a service's,
+    and a goal's not yet started, succeeding with "Arm trajectory stopped"; aborts with "No arm
+    trajectory to stop" when nothing runs) and the cancels of the arm actions' running goal,
+    each taken with the simulation paused ahead
+    (:class:`~ow_lander.arm_services.stop_clock.StopPause`) when an execution may stop.
 
     Args:
         executor: the arm's executions (their stop and its pause).
         running: the action and goal id running now, or None.
+        flag_goal: flags the running action goal as stopped by ArmStop; whether one runs.
     """
 
     def __init__(
-        self, executor: ArmExecutor, running: Callable[[], tuple[str, str] | None]
+        self,
+        executor: ArmExecutor,
+        running: Callable[[], tuple[str, str] | None],
+        flag_goal: Callable[[], bool],
     ) -> None:
         self.executor = executor
         self._running = running
+        self._flag_goal = flag_goal
         self._taken = threading.local()  # a stop started while actionlib took a message
         self.server = PausingActionServer(
             "ArmStop", owl.ArmStopAction, self._on_stop, around_goal=self._around_stop
@@ -103,7 +112,8 @@ class StopRequests:
         threading.Thread(target=self._stop, args=(handle,), daemon=True).start()
 
     def _stop(self, handle: Any) -> None:
-        if self.executor.stop():
-            handle.set_succeeded(text="stopped the arm; it holds where it stopped")
+        flagged = self._flag_goal()
+        if self.executor.stop() or flagged:
+            handle.set_succeeded(text=ARM_STOPPED)
         else:
-            handle.set_aborted(text="nothing to stop: no arm trajectory is running")
+            handle.set_aborted(text=NOTHING_TO_STOP)

@@ -1,5 +1,6 @@
 """The antenna mast's pan and tilt, as OceanWATERS' PanTiltMoveJoints and PanTiltMoveCartesian
-actions use them: goal checks, the look-at solution and the arrival test. No ROS.
+actions use them: goal checks, the look-at solution and the arrival test; and as its single-joint
+Pan and Tilt actions (ow_lander) use them: their goal check and settle rule. No ROS.
 
 The mast's pointing axis is OceanWATERS' stereo camera's: our URDF has no camera links, so the
 camera mount of OceanWATERS' URDF (spec section 1.5: on ``l_ant_panel`` at (0.53811, 0.07, 0) m,
@@ -147,6 +148,112 @@ class MoveWatch:
             )
             return MoveEnd("aborted", text, hold=True)
         return None
+
+
+@dataclass(frozen=True)
+class SingleJoint:
+    """One of OceanWATERS' single-joint mast actions (ow_lander's Pan and Tilt).
+
+    Attributes:
+        action: the action's name ("Pan").
+        field: its goal's field ("pan"); the result and feedback field is ``<field>_position``.
+        index: the joint's index in ``ANTENNA_JOINTS`` and in (pan, tilt) pairs.
+        limit_rad: rad, the goal's limit: it must lie in [-limit, limit].
+    """
+
+    action: str
+    field: str
+    index: int
+    limit_rad: float
+
+    def check_goal(self, value: float) -> float:
+        """The goal's angle (rad), checked as OceanWATERS checks it (NaN fails too).
+
+        Raises:
+            GoalError: outside [-limit, limit], with OceanWATERS' text ("Requested pan 4.0 is
+                not within allowed limits.").
+        """
+        value = float(value)
+        if not -self.limit_rad <= value <= self.limit_rad:
+            msg = f"Requested {self.field} {value} is not within allowed limits."
+            raise GoalError(msg)
+        return value
+
+
+PAN = SingleJoint("Pan", "pan", 0, PAN_LIMIT_RAD)
+TILT = SingleJoint("Tilt", "tilt", 1, TILT_LIMIT_RAD)
+#: s of sim time from the command to a Pan/Tilt move's first check, and between its checks
+#: (OceanWATERS polls at 5 Hz and sleeps one period first).
+SETTLE_PERIOD_S = 0.2
+#: Checks of a Pan/Tilt move before it is judged without having settled (30 s at 5 Hz).
+SETTLE_CHECKS = 150
+#: rad/s, a Pan/Tilt move has settled when both mast joints turn slower than this.
+SETTLE_SPEED = 1e-4
+#: The status text of a cancelled Pan or Tilt goal.
+PREEMPTED_TEXT = "Action was preempted"
+#: s, a stamp this close to a check's time is at it (stamps are float sums of steps).
+_STAMP_SLACK_S = 1e-9
+
+
+class SettleWatch:
+    """OceanWATERS' rule for a Pan or Tilt move, on the joint states' stamps (s, sim): checks
+    every :data:`SETTLE_PERIOD_S` from one period after the set-point took effect; at each check a
+    cancel ends the move, else it goes on until both joints turn slower than
+    :data:`SETTLE_SPEED` (or :data:`SETTLE_CHECKS` periods passed); the joint's angle then
+    decides, modulo 2 pi, within :data:`TOLERANCE_RAD` of the goal. The same joint states give
+    the same decisions whatever the machine's load.
+
+    OceanWATERS waits one period after publishing the set-point, for the joint to start moving.
+    Here the set-point reaches the simulation some time after it is published (tenths of a
+    second of sim time when the simulation runs many times faster than real time): the first
+    check is one period after ``start_s``, the sim time the simulation took the set-point from
+    (its receipt), or, without one, one period after the first joint state.
+
+    Args:
+        joint: the action.
+        goal: rad, the joint's target (checked).
+        start_s: s (sim), when the set-point took effect, or None.
+    """
+
+    def __init__(self, joint: SingleJoint, goal: float, start_s: float | None = None) -> None:
+        self.joint = joint
+        self.goal = goal
+        #: periods passed since the first check's time (each check counts those it ends)
+        self.checks = 0
+        self._next = None if start_s is None else start_s + SETTLE_PERIOD_S
+
+    def due(self, stamp: float) -> bool:
+        """Whether the joint state at ``stamp`` (s) is a check (then the next is one period
+        after this one's time)."""
+        if self._next is None:
+            self._next = stamp + SETTLE_PERIOD_S
+            return False
+        if stamp < self._next - _STAMP_SLACK_S:
+            return False
+        passed = 1 + max(math.floor((stamp - self._next + _STAMP_SLACK_S) / SETTLE_PERIOD_S), 0)
+        self._next += SETTLE_PERIOD_S * passed
+        self.checks += passed  # a gap in the states counts every period it spans
+        return True
+
+    def judge(
+        self, angles: tuple[float, float], speeds: tuple[float, float], preempted: bool
+    ) -> MoveEnd | None:
+        """The move's end at a check, or None while it goes on.
+
+        Args:
+            angles: rad, (pan, tilt) now.
+            speeds: rad/s, (pan, tilt) velocities now (NaN: not measured, never settled).
+            preempted: a cancel came.
+        """
+        if preempted:
+            return MoveEnd("preempted", PREEMPTED_TEXT, hold=True)
+        settled = all(abs(v) < SETTLE_SPEED for v in speeds)
+        if not settled and self.checks < SETTLE_CHECKS:
+            return None
+        if abs(_wrap(angles[self.joint.index] - self.goal)) <= TOLERANCE_RAD:
+            return MoveEnd("succeeded", f"Reached commanded {self.joint.field} value", hold=False)
+        text = f"{self.joint.field.capitalize()} joint failed to reach its goal position."
+        return MoveEnd("aborted", text, hold=True)
 
 
 def _wrap(angle: float) -> float:

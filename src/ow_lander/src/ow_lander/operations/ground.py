@@ -7,6 +7,13 @@ and returns an :class:`~ow_lander.operations.operation_plan.OperationPlan` whose
 ground have the speed class :attr:`~ow_description.trajectory.Speed.DIG` (the descent
 :attr:`~ow_description.trajectory.Speed.GUARDED`). Points are in base_link, m. Bad requests raise
 :class:`~ow_lander.errors.PlanningError` with a message naming the value and the limit.
+
+OceanWATERS' task actions (HEAD) send ``centred: true``: then (x, y) is the centre of the trench
+(grind: midway between the two passes; linear dig: the middle of the cut; circular dig: the
+lowest point of the sweep, as without it), depths and lengths are not limited (OceanWATERS never
+checks them; what cannot be planned fails in planning), and the grinder may turn about its own
+axis, as OceanWATERS' grinder joint lets it. Its ArmFindSurface sends the scoop's ``rotation``
+for the guarded move.
 """
 
 from __future__ import annotations
@@ -28,13 +35,15 @@ from ow_description.description import (
     SCOOP_LINK,
     SCOOP_TIP_FRAME,
 )
+from ow_description.errors import IKError
 from ow_description.terrain import HeightMap
 from ow_description.trajectory import PathSegment, Speed
 from ow_lander.errors import PlanningError
-from ow_lander.operations.motions import ArmMotions, align, rz
+from ow_lander.operations.motions import ArmMotions, align, line, rz
 from ow_lander.operations.operation_plan import OperationPlan, check_finite
 from ow_lander.operations.registry import OPERATIONS
 from ow_lander.operations.workspace import GRIND_PASS_SHIFT
+from ow_lander.planning.validity import CheckContext
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -57,6 +66,11 @@ CIRCULAR_PERPENDICULAR_POSE = (math.pi / 2, -math.pi / 2, 0.0, 0.0, 0.0)
 
 #: Request fields are float32: 0.1 arrives as 0.10000000149. Limits are compared with this slack.
 FLOAT32_SLACK = 1e-6
+#: The joints that place the grinder tip with the grinder free to turn about its axis (its own
+#: joint, which OceanWATERS plans with; ours spins it and leaves it out of the arm's plans).
+GRINDER_AXIS_JOINTS = (*ARM_JOINTS[:5], "j_grinder")
+#: m, how far a guarded descent may end short of its requested end without a note.
+DESCENT_SHORTFALL_NOTED = 1e-3
 
 
 def effective_parameters(operation: str, request: Mapping[str, Any]) -> dict[str, Any]:
@@ -88,7 +102,12 @@ def plan_guarded_move(
     m: ArmMotions, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]
 ) -> OperationPlan:
     """Approach: the scoop tip to (x, y, z), its bottom turned against ``direction``; then
-    the guarded descent: a straight line of ``search_distance`` along -direction."""
+    the guarded descent: a straight line of ``search_distance`` along -direction.
+
+    The scoop's orientation is ``rotation`` ((3, 3), base_link) when the request has one and the
+    arm can take it there, else the arm's aimed one with its bottom turned against
+    ``direction`` (noted). The descent goes as deep as the arm can without the rest of it
+    touching the terrain (noted when that is short of ``search_distance``)."""
     p = effective_parameters("guarded_move", request)
     check_finite(p, "x", "y", "z", "direction_x", "direction_y", "direction_z", "search_distance")
     normal = np.array([p["direction_x"], p["direction_y"], p["direction_z"]], dtype=float)
@@ -104,28 +123,48 @@ def plan_guarded_move(
     start = m.start(q, terrain)
     ctx = m.context(q, terrain)
     reference = m.reference(yaw, GUARDED_POSE)
-    R0 = align(m.rotation(reference, q, SCOOP_TIP_FRAME), 2, -normal)
-    goal = m.planner.solve_ik(SCOOP_TIP_FRAME, target, R0, reference, ctx)
+    aimed = align(m.rotation(reference, q, SCOOP_TIP_FRAME), 2, -normal)
+    notes = []
+    if "rotation" in p:
+        asked = np.asarray(p["rotation"], dtype=np.float64)
+        try:
+            R0, goal = asked, m.planner.solve_ik(SCOOP_TIP_FRAME, target, asked, reference, ctx)
+        except PlanningError as error:
+            R0, goal = aimed, m.planner.solve_ik(SCOOP_TIP_FRAME, target, aimed, reference, ctx)
+            notes.append(
+                f"the scoop is turned about the normal from the orientation asked ({error})"
+            )
+    else:
+        R0, goal = aimed, m.planner.solve_ik(SCOOP_TIP_FRAME, target, aimed, reference, ctx)
     approach = m.approach(start, goal, reference, ctx)
     dig = m.context(q, terrain, SCOOP_LINK)
     end = target - normal * float(p["search_distance"])
-    # The search goes as deep as the arm can without the rest of it touching the terrain.
     descent = m.cartesian(approach[-1], SCOOP_TIP_FRAME, end, lambda _: R0, dig, partial=True)
+    shortfall = float(np.linalg.norm(m.position(descent[-1], q, SCOOP_TIP_FRAME) - end))
+    if shortfall > DESCENT_SHORTFALL_NOTED:
+        notes.append(
+            f"the descent ends {shortfall:.3f} m short of its end: deeper, the arm would touch "
+            "the terrain or leave its reach"
+        )
     segments = [
         PathSegment("approach", approach),
         PathSegment("guarded", descent, Speed.GUARDED),
     ]
-    return OperationPlan("guarded_move", segments, p)
+    return OperationPlan("guarded_move", segments, p, notes)
 
 
 def plan_grind(
     m: ArmMotions, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]
 ) -> OperationPlan:
-    """Two grinder passes of ``length`` at ``depth`` below the ground, grinder vertical."""
+    """Two grinder passes of ``length`` at ``depth`` below the ground, grinder vertical,
+    the first from (x, y) (``centred``: the passes' centre is (x, y), see
+    :func:`_grind_centred`)."""
     p = effective_parameters("grind", request)
     check_finite(p, "x", "y", "depth", "length", "ground_position")
-    _depth(p["depth"], MAX_GRIND_DEPTH, "grinder")
-    _length(p["length"])
+    centred = bool(p.get("centred"))
+    if not centred:
+        _depth(p["depth"], MAX_GRIND_DEPTH, "grinder")
+        _length(p["length"])
     x, y, ground = float(p["x"]), float(p["y"]), float(p["ground_position"])
     yaw = m.yaw(x, y)
     heading = np.array([math.cos(yaw), math.sin(yaw), 0.0])
@@ -134,23 +173,29 @@ def plan_grind(
     # The second pass is beside the first: to the left of a radial trench, further out from
     # the lander for a trench across the arm.
     shift = -right if p["parallel"] else heading
-    bottom = ground - float(p["depth"])
+    length = float(p["length"])
+    first = np.array([x, y, ground - float(p["depth"])])
+    if centred:
+        first = first - direction * length / 2 - shift * GRIND_PASS_SHIFT / 2
     corners = [
-        np.array([x, y, bottom]),
-        np.array([x, y, bottom]) + direction * p["length"],
-        np.array([x, y, bottom]) + direction * p["length"] + shift * GRIND_PASS_SHIFT,
-        np.array([x, y, bottom]) + shift * GRIND_PASS_SHIFT,
+        first,
+        first + direction * length,
+        first + direction * length + shift * GRIND_PASS_SHIFT,
+        first + shift * GRIND_PASS_SHIFT,
     ]
-    m.yaw(*corners[1][:2])
-    m.yaw(*corners[2][:2])
-    start = m.start(q, terrain)
+    for corner in corners if centred else corners[1:3]:
+        m.yaw(*corner[:2])
     reference = m.reference(yaw, GRIND_POSE)
+    rise = APPROACH_HEIGHT + float(p["depth"])
+    if centred:
+        return OperationPlan("grind", _grind_centred(m, q, terrain, reference, corners, rise), p)
+    start = m.start(q, terrain)
     R0 = m.rotation(reference, q, GRINDER_TIP_FRAME)
 
     def vertical(point: FloatArray) -> FloatArray:
         return rz(m.yaw(point[0], point[1]) - yaw) @ R0
 
-    above = corners[0] + [0.0, 0.0, APPROACH_HEIGHT + float(p["depth"])]
+    above = corners[0] + [0.0, 0.0, rise]
     ctx = m.context(q, terrain)
     dig = m.context(q, terrain, GRINDER_LINK)
     goal = m.planner.solve_ik(GRINDER_TIP_FRAME, above, R0, reference, ctx)
@@ -161,25 +206,145 @@ def plan_grind(
         path = m.cartesian(arm, GRINDER_TIP_FRAME, corner, vertical, dig)
         segments.append(PathSegment(label, path, Speed.DIG))
         arm = path[-1]
-    exit_point = corners[3] + [0.0, 0.0, APPROACH_HEIGHT + float(p["depth"])]
+    exit_point = corners[3] + [0.0, 0.0, rise]
     path = m.cartesian(arm, GRINDER_TIP_FRAME, exit_point, vertical, dig)
     segments.append(PathSegment("retract", path))
     return OperationPlan("grind", segments, p)
 
 
+def _grind_centred(
+    m: ArmMotions,
+    q: FloatArray,
+    terrain: HeightMap | None,
+    reference: FloatArray,
+    corners: list[FloatArray],
+    rise: float,
+) -> list[PathSegment]:
+    """OceanWATERS' grind (the passes between ``corners`` (3,) m): the grinder vertical and
+    free to turn about its axis (OceanWATERS plans it with the grinder joint), placed at the
+    first corner on the branch of ``reference`` (6,) rad; it goes down to it and up from the
+    last corner straight along z, from and to ``rise`` m above them or as high as the arm
+    reaches on that branch (close to the lander, less high: OceanWATERS changes branch on
+    the way down, which a straight line cannot)."""
+    start = m.start(q, terrain)
+    R_axis = m.rotation(reference, q, GRINDER_TIP_FRAME)
+    ctx = m.context(q, terrain)
+    dig = m.context(q, terrain, GRINDER_LINK)
+    R_first = _grinder_rotations(m, q, reference, [corners[0]], R_axis)[0]
+    down = m.planner.solve_ik(GRINDER_TIP_FRAME, corners[0], R_first, reference, dig)
+    descend = _grinder_rise(m, q, down, rise, R_axis, dig)[::-1]
+    approach = m.approach(start, descend[0], reference, ctx)
+    # The approach may end a whole turn of the hand yaw away from the descent's top (the same
+    # pose): the descent turns with it.
+    turn = approach[-1] - descend[0]
+    if not np.allclose(turn, 0.0):
+        descend = descend + turn
+        blocked = m.planner.first_invalid(descend, dig)
+        if blocked is not None:
+            msg = f"the grinder's descent is blocked: {m.planner.explain(blocked, dig)}"
+            raise PlanningError(msg)
+    segments = [PathSegment("approach", approach), PathSegment("descend", descend, Speed.DIG)]
+    arm = descend[-1]
+    for label, corner in zip(("pass_1", "shift", "pass_2"), corners[1:], strict=True):
+        points = line(m.position(arm, q, GRINDER_TIP_FRAME), corner, _step(m))
+        rotations = _grinder_rotations(m, q, arm, points, R_axis)
+        path = m.planner.plan_cartesian(arm, GRINDER_TIP_FRAME, points, rotations, dig)
+        segments.append(PathSegment(label, path, Speed.DIG))
+        arm = path[-1]
+    retract = _grinder_rise(m, q, arm, rise, R_axis, dig)
+    if len(retract) > 1:
+        segments.append(PathSegment("retract", retract))
+    # Where the rise stops short, still in or at the terrain: on out of it as any operation
+    # that starts there does.
+    lift = m.lift_off(m.planner.full(retract[-1], q), terrain)
+    if lift is not None:
+        segments.append(PathSegment("lift_off", lift))
+    return segments
+
+
+def _step(m: ArmMotions) -> float:
+    return float(m.planner.config.cartesian_step_m)
+
+
+def _grinder_rise(
+    m: ArmMotions,
+    q: FloatArray,
+    arm: FloatArray,
+    rise: float,
+    R_axis: FloatArray,
+    ctx: CheckContext,
+) -> FloatArray:
+    """(n, 6) rad: the grinder tip straight up from where it is at ``arm`` (6,) rad, by
+    ``rise`` m or as far as the arm goes on its branch (free about the grinder's axis); just
+    ``arm`` when it cannot go up at all."""
+    here = m.position(arm, q, GRINDER_TIP_FRAME)
+    points = line(here, here + np.array([0.0, 0.0, rise]), _step(m))
+    rotations = _grinder_rotations(m, q, arm, points, R_axis, partial=True)
+    if not rotations:
+        return np.array([arm])
+    reached = points[: len(rotations)]
+    try:
+        return m.planner.plan_cartesian(
+            arm, GRINDER_TIP_FRAME, reached, rotations, ctx, partial=True
+        )
+    except PlanningError:  # not even its first step
+        return np.array([arm])
+
+
+def _grinder_rotations(
+    m: ArmMotions,
+    q: FloatArray,
+    arm: FloatArray,
+    points: list[FloatArray],
+    R_axis: FloatArray,
+    partial: bool = False,
+) -> list[FloatArray]:
+    """(3, 3) each, base_link: the grinder tip's orientation at each of ``points`` with its
+    axis (the tip's x) along ``R_axis``'s, turned about the axis as the arm reaches it from
+    ``arm`` (6,) rad, each point seeded by the previous (the grinder joint turns it freely).
+    With ``partial``, those of the points up to the first the arm cannot reach.
+
+    Raises:
+        PlanningError: a point the grinder tip cannot reach with its axis so (not partial).
+    """
+    model = m.model
+    grinder = model.index("j_grinder")
+    current = m.planner.full(arm, q)
+    rotations = []
+    for point in points:
+        try:
+            solved = model.ik(
+                GRINDER_TIP_FRAME, point, current, R_axis, GRINDER_AXIS_JOINTS, restarts=0
+            )
+        except IKError as error:
+            if partial:
+                break
+            raise PlanningError(str(error)) from error
+        solved[grinder] = q[grinder]
+        rotations.append(model.fk(solved, GRINDER_TIP_FRAME)[:3, :3])
+        current = solved
+    return rotations
+
+
 def plan_dig_linear(
     m: ArmMotions, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]
 ) -> OperationPlan:
-    """Rasping cut: the scoop dips in to ``depth``, cuts ``length`` radially, lifts out."""
+    """Rasping cut: the scoop dips in to ``depth``, cuts ``length`` radially from (x, y)
+    (``centred``: through (x, y), its middle), lifts out."""
     p = effective_parameters("dig_linear", request)
     check_finite(p, "x", "y", "depth", "length", "ground_position")
-    _depth(p["depth"], MAX_SCOOP_DEPTH, "scoop")
-    _length(p["length"])
+    centred = bool(p.get("centred"))
+    if not centred:
+        _depth(p["depth"], MAX_SCOOP_DEPTH, "scoop")
+        _length(p["length"])
     x, y, ground = float(p["x"]), float(p["y"]), float(p["ground_position"])
     yaw = m.yaw(x, y)
     heading = np.array([math.cos(yaw), math.sin(yaw), 0.0])
     bottom = ground - float(p["depth"])
     cut_start = np.array([x, y, bottom])
+    if centred:
+        cut_start -= heading * float(p["length"]) / 2
+        m.yaw(*cut_start[:2])
     cut_end = cut_start + heading * p["length"]
     m.yaw(*cut_end[:2])
     start = m.start(q, terrain)
@@ -247,7 +412,8 @@ def plan_dig_circular(
     wrist (distal pitch) when parallel, about the hand (hand yaw) when perpendicular."""
     p = effective_parameters("dig_circular", request)
     check_finite(p, "x", "y", "depth", "ground_position")
-    _depth(p["depth"], MAX_SCOOP_DEPTH, "scoop")
+    if not p.get("centred"):
+        _depth(p["depth"], MAX_SCOOP_DEPTH, "scoop")
     x, y, ground = float(p["x"]), float(p["y"]), float(p["ground_position"])
     yaw = m.yaw(x, y)
     parallel = bool(p["parallel"])

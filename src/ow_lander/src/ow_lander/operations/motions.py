@@ -32,7 +32,8 @@ from ow_lander.planning.validity import CheckContext, densify
 
 FloatArray = npt.NDArray[np.float64]
 
-#: m, clearance above the terrain a tool is lifted to when an operation starts in contact.
+#: m, clearance above the terrain a tool is lifted to when an operation starts in contact (above
+#: the depth of the link deepest in the terrain).
 LIFT_OFF_CLEARANCE = 0.10
 #: m, a tool closer than this to the terrain at the start of an operation is lifted off first
 #: (it may sit in a dent it made, whose walls the next motion would scrape).
@@ -177,7 +178,8 @@ class ArmMotions:
         return planner.plan_free(start, goal, ctx)
 
     def start(self, q: FloatArray, terrain: HeightMap | None) -> FloatArray:
-        """(6,) rad, the arm joints of ``q``, where every plan starts.
+        """(6,) rad, the arm joints of ``q``, where every plan starts (after :meth:`escape` and
+        :meth:`lift_off`, which take the arm out of a contact).
 
         Raises:
             PlanningError: that configuration is invalid (the message says why).
@@ -189,6 +191,29 @@ class ArmMotions:
             raise PlanningError(msg)
         return arm
 
+    def leaving(
+        self, q: FloatArray, terrain: HeightMap | None, tools: bool = False
+    ) -> tuple[CheckContext, dict[str, float]]:
+        """The context of a move out of the terrain from ``q``, and how deep each link is in it.
+
+        A link in the terrain at ``q`` (a burial, a dig or a guarded move stopped deep) may stay
+        in it on the way out; every other link must stay above it; with ``tools`` the scoop and
+        the grinder may touch it too (they are lifted off it).
+
+        Returns:
+            (the context, link -> m its deepest point is below the terrain, 0 when above).
+        """
+        depths = dict.fromkeys(ARM_LINKS, 0.0)
+        if terrain is not None:
+            contact = self.model.collision.terrain_contact
+            depths = {link: contact(q, terrain, (link,))[1] for link in ARM_LINKS}
+        free = {SCOOP_LINK, GRINDER_LINK} if tools else set()
+        links = tuple(link for link in ARM_LINKS if link not in free and not depths[link] > 0.0)
+        ctx = CheckContext(
+            np.asarray(q, dtype=np.float64), terrain, links, self.planner.config.terrain_margin_m
+        )
+        return ctx, depths
+
     def escape(self, q: FloatArray, terrain: HeightMap | None) -> FloatArray | None:
         """(2, 6) rad, a straight move out of a configuration in which the arm touches the
         lander or itself, or None when it touches neither (or a joint is beyond its limits).
@@ -198,7 +223,8 @@ class ArmMotions:
         yaw driven onto its -1.8 rad limit puts l_prox in the body), and no plan may start in
         collision. The escape follows the straight joint-space line towards the unstowed pose
         to ``ESCAPE_MARGIN_RAD`` past its first collision-free state; from that state on the
-        line is checked against the terrain too.
+        line is checked against the terrain too, but for the links already in it (lifted out
+        next, :meth:`lift_off`).
 
         Raises:
             PlanningError: no collision-free state on that line, or the terrain blocks it.
@@ -218,63 +244,70 @@ class ArmMotions:
             )
             raise PlanningError(msg)
         end = states[min(free + math.ceil(ESCAPE_MARGIN_RAD / resolution), len(states) - 1)]
-        blocked = self.planner.first_invalid(
-            np.vstack([states[free], end]), self.context(q, terrain)
-        )
+        ctx, _ = self.leaving(q, terrain)
+        blocked = self.planner.first_invalid(np.vstack([states[free], end]), ctx)
         if blocked is not None:
             msg = (
                 "the arm's current configuration touches the lander and the move out of it is "
-                f"blocked: {self.planner.explain(blocked, self.context(q, terrain))}"
+                f"blocked: {self.planner.explain(blocked, ctx)}"
             )
             raise PlanningError(msg)
         return np.vstack([arm, end])
 
     def lift_off(self, q: FloatArray, terrain: HeightMap | None) -> FloatArray | None:
-        """(n, 6) rad path lifting a tool off the terrain, or None when no tool is near it.
+        """(n, 6) rad path lifting the arm out of the terrain, or None when it is clear of it.
 
-        A tool within ``CONTACT_CLEARANCE`` of the terrain (or in it) is lifted straight up to
-        ``LIFT_OFF_CLEARANCE`` above it; when the straight line is blocked, by the shoulder
-        pitch alone.
+        A start in the terrain is a start: a tool within ``CONTACT_CLEARANCE`` of the terrain
+        (or in it), or any link in it (buried, or left there by a dig or guarded move that
+        stopped deep), is lifted with the tool tip straight up, its orientation kept, to
+        ``LIFT_OFF_CLEARANCE`` above the depth of the deepest link; when the straight line is
+        blocked, by the shoulder pitch alone. On the way out the links in the terrain at the
+        start may stay in it, the others must stay above it (:meth:`leaving`); at the end every
+        link is above it.
 
         Raises:
-            PlanningError: the arm is invalid even without its tools, or cannot be freed.
+            PlanningError: the arm touches the lander or itself there, or cannot be freed.
         """
-        arm = self.planner.arm(q)
-        tools = (SCOOP_LINK, GRINDER_LINK)
         if terrain is None:
             return None
-        # The terrain alone: the contacts are checked by the validity checks below.
-        near_link, near_depth = self.model.collision.terrain_contact(
-            q, terrain, tools, CONTACT_CLEARANCE
-        )
+        arm = self.planner.arm(q)
+        tools = (SCOOP_LINK, GRINDER_LINK)
+        near_link, _ = self.model.collision.terrain_contact(q, terrain, tools, CONTACT_CLEARANCE)
         if near_link is None and self.planner.is_valid(arm, self.context(q, terrain)):
             return None
-        ctx = CheckContext(
-            np.asarray(q, dtype=np.float64),
-            terrain,
-            tuple(link for link in ARM_LINKS if link not in tools),
-            self.planner.config.terrain_margin_m,
-        )
+        ctx, depths = self.leaving(q, terrain, tools=True)
         if not self.planner.is_valid(arm, ctx):
             msg = f"the arm's current configuration is invalid: {self.planner.explain(arm, ctx)}"
             raise PlanningError(msg)
-        frame = SCOOP_TIP_FRAME if near_link == SCOOP_LINK else GRINDER_TIP_FRAME
-        penetration = max(near_depth - CONTACT_CLEARANCE, 0.0)
+        deepest = max(ARM_LINKS, key=lambda link: depths[link])
+        stuck = near_link if depths[deepest] <= 0.0 else deepest
+        frame = GRINDER_TIP_FRAME if stuck == GRINDER_LINK else SCOOP_TIP_FRAME
         here = self.position(arm, q, frame)
         rotation = self.rotation(arm, q, frame)
-        target = here + np.array([0.0, 0.0, penetration + LIFT_OFF_CLEARANCE])
+        height = float(here[2]) + depths[deepest] + LIFT_OFF_CLEARANCE
+        full = self.context(q, terrain)
         try:
-            path = self.cartesian(arm, frame, target, lambda _: rotation, ctx)
+            path = self.cartesian(
+                arm, frame, np.array([here[0], here[1], height]), lambda _: rotation, ctx
+            )
         except PlanningError as error:
             # E.g. after an execution stopped half-way the wrist may be folded so that a
             # straight lift makes the hand touch the distal link: raise the whole arm with the
             # shoulder pitch instead.
-            path = self._shoulder_lift(arm, q, frame, target[2], ctx, error)
-        if not self.planner.is_valid(path[-1], self.context(q, terrain)):
-            end = self.planner.explain(path[-1], self.context(q, terrain))
-            msg = f"lifting {near_link} off the terrain did not free the arm: {end}"
+            path, blocked = arm[None, :], f"a straight lift is blocked ({error})"
+        else:
+            blocked = "a straight lift leaves it in the terrain"
+        if self.planner.is_valid(path[-1], full):
+            return path
+        # Still in the terrain (the elbow of a deep burial): the shoulder pitch raises the rest.
+        raised = self._shoulder_lift(path[-1], q, frame, height, ctx, full)
+        if raised is None:
+            msg = (
+                f"cannot lift {stuck} out of the terrain: {blocked}, and turning the shoulder "
+                f"pitch does not free it ({self.planner.explain(path[-1], full)})"
+            )
             raise PlanningError(msg)
-        return path
+        return np.vstack([path, raised[1:]])
 
     def _shoulder_lift(
         self,
@@ -283,10 +316,11 @@ class ArmMotions:
         frame: str,
         height: float,
         ctx: CheckContext,
-        cartesian_error: PlanningError,
-    ) -> FloatArray:
-        """(n, 6) rad: the shoulder pitch alone turned (the way that raises ``frame``) until
-        ``frame`` is at ``height`` m, every state valid in ``ctx``."""
+        full: CheckContext,
+    ) -> FloatArray | None:
+        """(n, 6) rad from ``arm``: the shoulder pitch alone turned (the way that raises
+        ``frame``) until ``frame`` is at ``height`` m and the arm is valid in ``full``, every
+        state valid in ``ctx``; None when neither way gets there."""
         pitch = ARM_JOINTS.index("j_shou_pitch")
         lower, upper = self.planner.lower[pitch], self.planner.upper[pitch]
         start_z = self.position(arm, q, frame)[2]
@@ -300,9 +334,8 @@ class ArmMotions:
                     break
                 path.append(current)
                 z = self.position(current, q, frame)[2]
-                if z >= height:
+                if z >= height and self.planner.is_valid(current, full):
                     return np.array(path)
                 if z < start_z:
                     break  # this way lowers the tool
-        msg = f"cannot lift the tool off the terrain: {cartesian_error}; nor with the shoulder"
-        raise PlanningError(msg)
+        return None

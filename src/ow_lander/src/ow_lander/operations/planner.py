@@ -147,7 +147,9 @@ class Operations:
         self, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]
     ) -> OperationPlan:
         """Carry the scoop upright to the pour point, then tip it to pour: over the sample dock
-        (use_defaults) or at (x, y, z) to discard."""
+        (use_defaults) or at (x, y, z) to discard. The scoop tip is held at the point, or, with
+        ``held: l_scoop`` (OceanWATERS' TaskDiscardSample), the scoop link's origin, tipping
+        about it."""
         use_dock = bool(request.get("use_defaults"))
         if use_dock:
             p: dict[str, Any] = {
@@ -160,6 +162,11 @@ class Operations:
             p = {"x": request["x"], "y": request["y"], "z": request["z"], "target": "discard"}
         check_finite(p, "x", "y", "z")
         point = np.array([p["x"], p["y"], p["z"]], dtype=float)
+        origin = None  # the held frame's origin in the tip frame (None: the tip itself)
+        if not use_dock and request.get("held", SCOOP_TIP_FRAME) == SCOOP_LINK:
+            p["held"] = SCOOP_LINK
+            X_tip = self.model.fk(q, SCOOP_TIP_FRAME)
+            origin = (np.linalg.inv(X_tip) @ self.model.fk(q, SCOOP_LINK))[:3, 3]
         start = self.motions.start(q, terrain)
         ctx = self.motions.context(q, terrain)
         errors: list[str] = []
@@ -172,7 +179,7 @@ class Operations:
         # whose carrying poses touch the hand).
         for seed in (start, self.planner.safe):
             for phi in _pour_headings(point):
-                solved = self._carry_and_pour(point, phi, seed, ctx, errors)
+                solved = self._carry_and_pour(point, phi, seed, ctx, errors, origin)
                 if solved is None:
                     continue
                 # The tip first: a heading whose pour needs a detour is usually refuted there.
@@ -198,9 +205,11 @@ class Operations:
     def plan_discard(
         self, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]
     ) -> OperationPlan:
-        """Discard the sample: carry the scoop upright to (x, y, z) and tip it there (the
-        action TaskDiscardSample; the point is already raised by its ``height``)."""
-        plan = self.plan_deliver_sample(q, terrain, {**request, "use_defaults": False})
+        """Discard the sample: carry the scoop upright, its link's origin at (x, y, z), and tip
+        it there (the action TaskDiscardSample, as OceanWATERS holds ``l_scoop``, not the tip;
+        the point is already raised by its ``height``)."""
+        request = {**request, "use_defaults": False, "held": SCOOP_LINK}
+        plan = self.plan_deliver_sample(q, terrain, request)
         return OperationPlan("discard", plan.segments, plan.parameters)
 
     def plan_move_joints(
@@ -263,15 +272,20 @@ class Operations:
         seed: FloatArray,
         ctx: CheckContext,
         errors: list[str],
+        origin: FloatArray | None = None,
     ) -> tuple[FloatArray, FloatArray] | None:
         """(carry, pour) (6,) rad: the scoop upright with its mouth along ``heading`` rad, then
-        tipped, its tip at ``point`` (3,) m, IK from ``seed``; None (the reason added to
-        ``errors``) when either is unreachable or collides."""
+        tipped, its tip at ``point`` (3,) m (or the point ``origin`` (3,) m in the tip frame),
+        IK from ``seed``; None (the reason added to ``errors``) when either is unreachable or
+        collides."""
         carry_R, pour_R = _carry_and_pour_rotations(heading)
+        carry_at, pour_at = point, point
+        if origin is not None:
+            carry_at, pour_at = point - carry_R @ origin, point - pour_R @ origin
         solve = self.planner.solve_ik
         try:
-            carry = solve(SCOOP_TIP_FRAME, point, carry_R, seed, ctx)
-            return carry, solve(SCOOP_TIP_FRAME, point, pour_R, carry, ctx)
+            carry = solve(SCOOP_TIP_FRAME, carry_at, carry_R, seed, ctx)
+            return carry, solve(SCOOP_TIP_FRAME, pour_at, pour_R, carry, ctx)
         except PlanningError as error:
             errors.append(str(error))
             return None

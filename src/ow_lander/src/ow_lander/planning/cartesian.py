@@ -42,6 +42,7 @@ class CartesianPlanner:
         self._restart_outcomes: dict[
             tuple[str, bytes, bytes | None, bytes], FloatArray | IKError
         ] = {}
+        self._branch_solutions: dict[tuple[str, bytes, bytes | None, bytes], list[FloatArray]] = {}
 
     def solve_ik(
         self,
@@ -56,10 +57,12 @@ class CartesianPlanner:
 
         The target is approached from the seed's own pose in 5 cm steps (each IK seeded by the
         previous one), so the solution keeps the seed's elbow and wrist branch; one IK from the
-        seed and then seeded random restarts (``ik_restarts``) are the fallback.
+        seed and then seeded random restarts (``ik_restarts``) are the fallback. When that
+        solution collides, the other branches the random restarts find are tried, the nearest
+        to the seed first (as MoveIt samples its IK for a valid goal state).
 
         Raises:
-            PlanningError: unreachable, or the solution collides (with the reason).
+            PlanningError: unreachable, or every solution found collides (with the reason).
         """
         checker = self.checker
         target = np.asarray(position, dtype=np.float64)
@@ -70,13 +73,47 @@ class CartesianPlanner:
             except IKError as error:
                 raise PlanningError(str(error)) from error
             arm = checker.unwrap(checker.arm(q), seed_arm)
-        if not checker.is_valid(arm, ctx):
-            msg = (
-                f"placing {frame} at ({target[0]:.3f}, {target[1]:.3f}, {target[2]:.3f}) m is not "
-                f"possible without a collision: {checker.explain(arm, ctx)}"
+        if checker.is_valid(arm, ctx):
+            return arm
+        for other in self._branches(frame, target, rotation, seed_arm, ctx.base):
+            if checker.is_valid(other, ctx):
+                return other
+        msg = (
+            f"placing {frame} at ({target[0]:.3f}, {target[1]:.3f}, {target[2]:.3f}) m is not "
+            f"possible without a collision: {checker.explain(arm, ctx)}"
+        )
+        raise PlanningError(msg)
+
+    def _branches(
+        self,
+        frame: str,
+        target: FloatArray,
+        rotation: FloatArray | None,
+        seed_arm: FloatArray,
+        base: FloatArray,
+    ) -> list[FloatArray]:
+        """(6,) rad, the distinct IK solutions of the target from seeded random starts, each
+        continuous joint at the turn nearest ``seed_arm``, nearest to ``seed_arm`` first. They
+        do not depend on ``seed_arm``'s arm joints until sorted, so they are kept per target as
+        :meth:`_restarted`'s outcomes are."""
+        checker = self.checker
+        key = self._key(frame, target, rotation, checker.full(seed_arm, base))
+        found = self._branch_solutions.get(key)
+        if found is None:
+            found = self.model.ik_solutions(
+                frame,
+                target,
+                checker.full(seed_arm, base),
+                rotation=rotation,
+                joints=ARM_JOINTS,
+                restarts=self.config.ik_restarts,
+                seed=self.config.seed,
             )
-            raise PlanningError(msg)
-        return arm
+            if len(self._branch_solutions) >= RESTART_OUTCOMES_KEPT:
+                self._branch_solutions.clear()
+            self._branch_solutions[key] = found
+        arms = [checker.unwrap(checker.arm(q), seed_arm) for q in found]
+        return sorted(arms, key=lambda arm: float(np.abs(arm - seed_arm).sum()))
 
     def _ik_continuation(
         self,
@@ -161,13 +198,7 @@ class CartesianPlanner:
         repeated target costs nothing and gives the answer it gave the first time. (The dock's
         pour poses are on an elbow branch no continuation reaches, and are asked for on every
         delivery.)"""
-        fixed = np.setdiff1d(self.model.chain_columns(frame), self.checker.idx)
-        key = (
-            frame,
-            target.tobytes(),
-            None if rotation is None else np.asarray(rotation, dtype=np.float64).tobytes(),
-            q0[fixed].tobytes(),
-        )
+        key = self._key(frame, target, rotation, q0)
         found = self._restart_outcomes.get(key)
         if found is None:
             try:
@@ -187,6 +218,19 @@ class CartesianPlanner:
                 self._restart_outcomes.clear()
             self._restart_outcomes[key] = found
         return found
+
+    def _key(
+        self, frame: str, target: FloatArray, rotation: FloatArray | None, q0: FloatArray
+    ) -> tuple[str, bytes, bytes | None, bytes]:
+        """What a random-restart IK outcome depends on: the frame, the target and the values
+        of the joints on the frame's chain that IK does not move (``q0`` (9,) rad)."""
+        fixed = np.setdiff1d(self.model.chain_columns(frame), self.checker.idx)
+        return (
+            frame,
+            target.tobytes(),
+            None if rotation is None else np.asarray(rotation, dtype=np.float64).tobytes(),
+            q0[fixed].tobytes(),
+        )
 
     def plan_cartesian(
         self,

@@ -99,8 +99,9 @@ class ArmPlanner:
         return self.checker.path_valid(waypoints, ctx, resolution)
 
     def unwrap(self, arm: FloatArray, reference: FloatArray) -> FloatArray:
-        """``arm`` with each full-turn joint moved by whole turns to the value closest to
-        ``reference`` that stays within its limits."""
+        """``arm`` with each continuous joint moved by whole turns to the value closest to
+        ``reference`` that stays within its travel (the same configuration, reached from
+        ``reference`` the shorter way round)."""
         return self.checker.unwrap(arm, reference)
 
     # -------------------------------------------------------------------------------- work
@@ -133,11 +134,18 @@ class ArmPlanner:
         through the unstowed pose (:meth:`plan_straight`); otherwise the sampled search of
         :meth:`plan_sampled` (``objective`` ``work``, ours, or ``length``, OMPL's).
 
+        A continuous joint's goal may be any angle: the path ends at the same angle less whole
+        turns, the one nearest ``start`` (:meth:`unwrap`), so that it turns the shorter way
+        round, as MoveIt plans continuous joints (a goal of 7.87 rad from 0 ends at 1.588 rad);
+        only when no path is found that way, one such joint may end a whole turn further,
+        having turned the other way round (:meth:`goal_turns`). Continue from the path's last
+        row.
+
         Raises:
             PlanningError: invalid start or goal (with the reason), or no path found.
         """
         start = np.asarray(start, dtype=np.float64)
-        goal = np.asarray(goal, dtype=np.float64)
+        goal = self.checker.unwrap(np.asarray(goal, dtype=np.float64), start)
         for name, arm in (("start", start), ("goal", goal)):
             if not self.checker.is_valid(arm, ctx):
                 msg = f"the {name} configuration is invalid: {self.checker.explain(arm, ctx)}"
@@ -147,6 +155,12 @@ class ArmPlanner:
             return straight
         return self.plan_sampled(start, goal, ctx, objective)
 
+    def goal_turns(self, start: FloatArray, goal: FloatArray) -> list[FloatArray]:
+        """``goal`` and the same state with one of its moving continuous joints reached the
+        other way round from ``start`` (a whole turn away), one per such joint: (6,) rad each,
+        ``goal`` first."""
+        return self._sampled.goal_turns(start, goal)
+
     def plan_sampled(
         self,
         start: FloatArray,
@@ -154,8 +168,9 @@ class ArmPlanner:
         ctx: CheckContext,
         objective: str = "work",
     ) -> FloatArray:
-        """The sampling steps of :meth:`plan_free` alone (RRT*, then RRTConnect), shortcut and
-        re-checked at the joint resolution; ``start`` and ``goal`` (6,) rad must be valid.
+        """The sampling steps of :meth:`plan_free` alone (RRT*, then RRTConnect, the continuous
+        joints turning the shorter way; then RRTConnect, either way), shortcut and re-checked
+        at the joint resolution; ``start`` and ``goal`` (6,) rad must be valid.
 
         Raises:
             PlanningError: no path found within the caps.

@@ -59,6 +59,12 @@ class SampledPlanner:
         """A valid path from ``start`` to ``goal`` ((6,) rad, both valid): RRT* (``rrt_attempts``
         seeds), then RRTConnect, shortcut and re-checked at the joint resolution.
 
+        The continuous joints turn the shorter way round to ``goal``. Only when neither search
+        finds a path that way, a last RRTConnect lets them reach their goal angles either way
+        round (as MoveIt's circular space for a continuous joint does): that path may end at
+        ``goal`` with one such joint a whole turn away (see :meth:`goal_turns`), so callers
+        continue from its last row.
+
         Args:
             start: (6,) rad.
             goal: (6,) rad.
@@ -66,7 +72,7 @@ class SampledPlanner:
             objective: ``work`` (ours) or ``length`` (OMPL path length, for comparisons).
 
         Returns:
-            (n, 6) rad waypoints from start to goal, n >= 2.
+            (n, 6) rad waypoints from start to goal (up to whole turns), n >= 2.
 
         Raises:
             PlanningError: no path found within the caps.
@@ -75,7 +81,12 @@ class SampledPlanner:
         direct = np.vstack([start, goal])
         for attempt in range(config.rrt_attempts):
             path = self._solve(
-                start, goal, ctx, config.seed + attempt, config.rrt_check_resolution_rad, objective
+                start,
+                [goal],
+                ctx,
+                config.seed + attempt,
+                config.rrt_check_resolution_rad,
+                objective,
             )
             if path is None:
                 continue
@@ -83,9 +94,12 @@ class SampledPlanner:
             if self.checker.path_valid(path, ctx):
                 self.stats.rrt_segments += 1
                 return path
-        if config.connect_time_limit_s > 0:
+        turns = self.goal_turns(start, goal)
+        # The shorter way round first; either way round only when that finds nothing.
+        searches = [[goal], turns] if len(turns) > 1 else [[goal]]
+        for goals in searches if config.connect_time_limit_s > 0 else []:
             path = self._solve(
-                start, goal, ctx, config.seed, config.joint_resolution_rad, objective, connect=True
+                start, goals, ctx, config.seed, config.joint_resolution_rad, objective, connect=True
             )
             if path is not None:
                 path = self._shortcut(path, ctx, objective)
@@ -96,7 +110,8 @@ class SampledPlanner:
         msg = (
             f"no collision-free path found by RRT* within {config.rrt_max_iterations} "
             f"iterations / {config.rrt_time_limit_s} s, nor by RRTConnect within "
-            f"{config.connect_time_limit_s} s (the straight segment is blocked: "
+            f"{config.connect_time_limit_s} s, the continuous joints turning either way round "
+            f"(the straight segment is blocked: "
             f"{self.checker.explain(start if blocked is None else blocked, ctx)})"
         )
         raise PlanningError(msg)
@@ -104,22 +119,24 @@ class SampledPlanner:
     def _solve(
         self,
         start: FloatArray,
-        goal: FloatArray,
+        goals: list[FloatArray],
         ctx: CheckContext,
         seed: int,
         resolution: float,
         objective: str,
         connect: bool = False,
     ) -> FloatArray | None:
-        """One seeded sample-based solve: RRT* with the objective, or RRTConnect (``connect``,
-        feasibility only); None when it found no exact solution within its caps."""
+        """One seeded sample-based solve from ``start`` to any of ``goals`` ((6,) rad each, the
+        first the one the cost threshold is measured to): RRT* with the objective, or RRTConnect
+        (``connect``, feasibility only); None when it found no exact solution within its caps."""
         checker, config = self.checker, self.config
         dim = len(checker.idx)
         space = ob.RealVectorStateSpace(dim)
         bounds = ob.RealVectorBounds(dim)
+        low, high = self.sampling_bounds(start, goals)
         for i in range(dim):
-            bounds.setLow(i, float(checker.lower[i]))
-            bounds.setHigh(i, float(checker.upper[i]))
+            bounds.setLow(i, float(low[i]))
+            bounds.setHigh(i, float(high[i]))
         space.setBounds(bounds)
         # The seed generator is reset here, before any RNG of this solve is created, so the same
         # request and state give the same plan whatever was planned before.
@@ -136,11 +153,18 @@ class SampledPlanner:
         si.setStateValidityCheckingResolution(resolution / space.getMaximumExtent())
         si.setup()
         pdef = ob.ProblemDefinition(si)
-        s, g = si.allocState(), si.allocState()
+        s = si.allocState()
         for i in range(dim):
             s[i] = float(start[i])
-            g[i] = float(goal[i])
-        pdef.setStartAndGoalStates(s, g)
+        pdef.addStartState(s)
+        goal_states = ob.GoalStates(si)
+        for arm in goals:
+            g = si.allocState()
+            for i in range(dim):
+                g[i] = float(arm[i])
+            goal_states.addState(g)
+        pdef.setGoal(goal_states)
+        goal = goals[0]
         straight = np.vstack([start, goal])
         if objective == "work":
             obj: ob.OptimizationObjective = _WorkObjective(si, self.work, ctx.base, to_arm)
@@ -193,6 +217,36 @@ class SampledPlanner:
             return None
         path = pdef.getSolutionPath()
         return np.array([to_arm(path.getState(i)) for i in range(path.getStateCount())])
+
+    def goal_turns(self, start: FloatArray, goal: FloatArray) -> list[FloatArray]:
+        """``goal`` ((6,) rad) and the same state with one of its moving continuous joints
+        reached the other way round from ``start``: that joint a whole turn away, on the far
+        side of ``start`` (within its travel), one state per such joint."""
+        checker = self.checker
+        continuous = checker.model.continuous[checker.idx]
+        goal = np.asarray(goal, dtype=np.float64)
+        turns = [goal]
+        for j in np.flatnonzero(continuous & (goal != start)):
+            other = goal.copy()
+            other[j] -= math.copysign(2 * math.pi, goal[j] - start[j])
+            if checker.lower[j] <= other[j] <= checker.upper[j]:
+                turns.append(other)
+        return turns
+
+    def sampling_bounds(
+        self, start: FloatArray, goals: list[FloatArray]
+    ) -> tuple[FloatArray, FloatArray]:
+        """(6,) rad lower and upper bounds of the joint space searched from ``start`` to
+        ``goals`` (:meth:`goal_turns`): the joint limits; for a continuous joint the angles
+        between its start and its goal reached either way round, and half a turn beyond them
+        for detours (within its travel). The whole turns of travel the URDF allows would only
+        thin out the samples."""
+        checker = self.checker
+        continuous = checker.model.continuous[checker.idx]
+        ends = np.vstack([start, *goals])
+        low = np.maximum(ends.min(axis=0) - math.pi, checker.lower)
+        high = np.minimum(ends.max(axis=0) + math.pi, checker.upper)
+        return np.where(continuous, low, checker.lower), np.where(continuous, high, checker.upper)
 
     def _shortcut(self, path: FloatArray, ctx: CheckContext, objective: str) -> FloatArray:
         """Greedy shortcut: from each kept waypoint jump to the farthest later one reachable by a
