@@ -108,7 +108,7 @@ def carve(ops: Operations, plan: OperationPlan, q: FloatArray, terrain: HeightMa
         for arm in densify(segment.waypoints, 0.01):
             for tool, (link, _) in TOOLS.items():
                 X = ops.model.fk(ops.planner.full(arm, q), link)
-                carver.cut(tool, X[:3, :3], X[:3, 3], config.carve_full_force)
+                carver.cut(tool, X[:3, :3], X[:3, 3], config.carve_full_force, digging=True)
     return carver.heightmap
 
 

@@ -24,7 +24,7 @@ from actionlib_msgs.msg import GoalStatus
 from std_srvs.srv import Trigger
 
 import owl_msgs.msg as owl
-from ow_bringup.testing import subscribe, wait_connected
+from ow_bringup.testing import subscribe, wait_connected, wait_for_server
 from ow_runtime.action_server import SEND_GOAL_GRACE_S
 from ow_runtime.lockstep_client import simulation_status
 from owl_msgs.msg import SystemFaultsStatus
@@ -87,7 +87,7 @@ def stock_client(name: str) -> actionlib.SimpleActionClient:
         time.sleep(DESCHEDULED_S)
 
     client.action_client.manager.register_send_goal_fn(write_and_lose_the_cpu)
-    assert client.wait_for_server(rospy.Duration(SERVER_WAIT_S)), f"no {name} server"
+    wait_for_server(client, SERVER_WAIT_S)
     return client
 
 

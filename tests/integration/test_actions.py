@@ -214,7 +214,7 @@ def test_move_cartesian_absolute_pose(stack, joints, model):
 def test_find_surface_on_flat_ground(stack, joints):
     set_terrain(stack, f"flat:{GROUND}")
     goal = owl.ArmFindSurfaceGoal(
-        frame=0, relative=False, position=Point(1.7, 0.0, GROUND), normal=Vector3(0, 0, -1),
+        frame=0, relative=False, position=Point(1.7, 0.0, GROUND), normal=Vector3(0, 0, 1),
         distance=0.2, overdrive=0.05, force_threshold=10.0, torque_threshold=10.0,
     )  # fmt: skip
     detector = []
@@ -235,16 +235,6 @@ def test_find_surface_on_flat_ground(stack, joints):
     # unstow for the next tests (lifts the scoop out of the ground first)
     state, _, text = run("ArmUnstow", owl.ArmUnstowGoal())
     assert state == GoalStatus.SUCCEEDED, text
-
-
-def test_find_surface_reports_no_surface(stack):
-    goal = owl.ArmFindSurfaceGoal(
-        frame=0, relative=False, position=Point(1.7, 0.0, GROUND + 0.25), normal=Vector3(0, 0, -1),
-        distance=0.1, overdrive=0.05, force_threshold=10.0, torque_threshold=10.0,
-    )  # fmt: skip
-    state, _, text = run("ArmFindSurface", goal)
-    assert state == GoalStatus.ABORTED
-    assert "No surface was found" in text
 
 
 def _long_move(joints):
@@ -323,37 +313,40 @@ def test_busy_both_ways(stack, joints):
 
 
 POSE_OK = Pose(Point(1.6, 0.0, 0.2), Quaternion(0, 0, 0, 1))
+#: Goals OceanWATERS accepts and then aborts (HEAD's texts), and the NaNs and infinities it lets
+#: through, which ours abort naming the field (docs/actions.md).
 BAD_GOALS = [
     ("ArmMoveJoint", owl.ArmMoveJointGoal(False, 6, 0.1), "joint=6"),
     ("ArmMoveJoint", owl.ArmMoveJointGoal(False, -1, 0.1), "joint=-1"),
     ("ArmMoveJoint", owl.ArmMoveJointGoal(False, 0, NAN), "angle=nan"),
     ("ArmMoveJoints", owl.ArmMoveJointsGoal(False, [0.0] * 5), "angles=["),
     ("ArmMoveJoints", owl.ArmMoveJointsGoal(False, [0, 0, float("inf"), 0, 0, 0]), "angles[2]=inf"),
-    ("ArmMoveJointsGuarded", owl.ArmMoveJointsGuardedGoal(False, [0.0] * 6, 0.0, 1.0), "force_threshold=0.0"),
-    ("ArmMoveJointsGuarded", owl.ArmMoveJointsGuardedGoal(False, [0.0] * 6, 1.0, -1.0), "torque_threshold=-1.0"),
-    ("ArmMoveCartesian", owl.ArmMoveCartesianGoal(2, False, POSE_OK), "frame=2"),
+    ("ArmMoveJointsGuarded", owl.ArmMoveJointsGuardedGoal(False, [0.0] * 6, NAN, 1.0), "force_threshold=nan"),
+    ("ArmMoveCartesian", owl.ArmMoveCartesianGoal(2, False, POSE_OK), "frame index 2"),
     ("ArmMoveCartesian", owl.ArmMoveCartesianGoal(0, False, Pose(Point(NAN, 0, 0), Quaternion(0, 0, 0, 1))), "pose.position.x=nan"),
-    ("ArmMoveCartesian", owl.ArmMoveCartesianGoal(0, False, Pose(Point(1.6, 0, 0.2), Quaternion(0, 0, 0, 0))), "pose.orientation="),
-    ("ArmMoveCartesianGuarded", owl.ArmMoveCartesianGuardedGoal(0, False, POSE_OK, 10.0, 0.0), "torque_threshold=0.0"),
-    ("ArmFindSurface", owl.ArmFindSurfaceGoal(0, False, Point(1.7, 0, GROUND), Vector3(0, 0, 0), 0.2, 0.05, 10, 10), "normal="),
-    ("ArmFindSurface", owl.ArmFindSurfaceGoal(-1, False, Point(1.7, 0, GROUND), Vector3(0, 0, -1), 0.2, 0.05, 10, 10), "frame=-1"),
-    ("ArmFindSurface", owl.ArmFindSurfaceGoal(0, False, Point(1.7, 0, GROUND), Vector3(0, 0, -1), 0.2, 0.05, NAN, 10), "force_threshold=nan"),
+    ("ArmMoveCartesian", owl.ArmMoveCartesianGoal(0, False, Pose(Point(1.6, 0, 0.2), Quaternion(0, 0, 0, 0))), "zero-quaternion"),
+    ("ArmMoveCartesianGuarded", owl.ArmMoveCartesianGuardedGoal(0, False, POSE_OK, 10.0, NAN), "torque_threshold=nan"),
+    ("ArmFindSurface", owl.ArmFindSurfaceGoal(0, False, Point(1.7, 0, GROUND), Vector3(0, 0, 0), 0.2, 0.05, 10, 10), "zero-vector"),
+    ("ArmFindSurface", owl.ArmFindSurfaceGoal(-1, False, Point(1.7, 0, GROUND), Vector3(0, 0, 1), 0.2, 0.05, 10, 10), "frame index -1"),
+    ("ArmFindSurface", owl.ArmFindSurfaceGoal(0, False, Point(1.7, 0, GROUND), Vector3(0, 0, 1), 0.2, 0.05, NAN, 10), "force_threshold=nan"),
     ("TaskGrind", owl.TaskGrindGoal(1.65, 0.0, NAN, 0.6, 1.0, GROUND), "depth=nan"),
-    ("TaskScoopLinear", owl.TaskScoopLinearGoal(3, False, Point(1.46, 0, GROUND), 0.01, 0.1), "frame=3"),
-    ("TaskDiscardSample", owl.TaskDiscardSampleGoal(0, False, Point(1.5, 0.8, GROUND), -0.3), "height=-0.3"),
+    ("TaskScoopLinear", owl.TaskScoopLinearGoal(3, False, Point(1.46, 0, GROUND), 0.01, 0.1), "frame index 3"),
+    ("TaskDiscardSample", owl.TaskDiscardSampleGoal(0, False, Point(1.5, 0.8, NAN), 0.3), "point.z=nan"),
 ]  # fmt: skip
 
 
 @pytest.mark.parametrize(("name", "goal", "named"), BAD_GOALS, ids=[b[2] for b in BAD_GOALS])
-def test_bad_goal_is_refused_naming_the_field(stack, name, goal, named):
+def test_bad_goal_is_aborted_naming_the_field(stack, joints, name, goal, named):
     # A fresh client: a reused one was seen (once in 3 runs) never to get the result of a goal
-    # the server rejected at once.
+    # the server ended at once.
+    before = joints.latest().copy()
     c = connected_client(name)
     c.send_goal(goal)
     assert c.wait_for_end(30), f"{name} did not end"
     state, text = c.get_state(), c.get_goal_status_text()
-    assert state == GoalStatus.REJECTED
+    assert state == GoalStatus.ABORTED
     assert named in text
+    assert np.allclose(joints.latest(), before, atol=0.01), "a bad goal moved the arm"
 
 
 UNREACHABLE = [
@@ -427,16 +420,16 @@ def test_an_execution_is_watched_from_the_start_of_its_trajectory(stack, joints)
     assert mine[0] <= start + 0.01 + STAMP_SLACK_S, f"start {start}, feedback {mine[:5]}"
 
 
-def test_goals_rejected_at_once_end_for_the_client_every_time(stack):
+def test_goals_ended_at_once_end_for_the_client_every_time(stack):
     """actionlib's SimpleActionClient drops a transition that arrives before ``send_goal``
-    returns, and an instant rejection then never ends for it; our ActionClient waits for
-    ``send_goal``: 30 instant rejections in a row all end."""
+    returns, and a goal ended at once then never ends for it; our ActionClient waits for
+    ``send_goal``: 30 instant ends in a row all reach it."""
     c = connected_client("ArmMoveCartesian")
     bad = owl.ArmMoveCartesianGoal(2, False, Pose(Point(1.7, 0, 0.2), Quaternion(0, 0, 0, 1)))
     for attempt in range(30):
         c.send_goal(bad)
         assert c.wait_for_end(30), f"goal {attempt} did not end"
-        assert c.get_state() == GoalStatus.REJECTED
+        assert c.get_state() == GoalStatus.ABORTED
 
 
 def test_every_server_publishes_its_status_once_a_period(stack, joints):

@@ -16,13 +16,12 @@ import time
 import actionlib
 import numpy as np
 import pytest
-import rospy
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
 from sensor_msgs.msg import JointState
 
 import owl_msgs.msg as owl
-from ow_bringup.testing import subscribe
+from ow_bringup.testing import subscribe, wait_for_server
 from ow_description.description import GRINDER_TIP_FRAME, SCOOP_TIP_FRAME, UNSTOWED
 from ow_description.model import LanderModel
 from ow_lander.actions.owl import quaternion_from_rotation, rotation_from_quaternion
@@ -74,7 +73,7 @@ def recorder(stack):
 def client(name: str) -> actionlib.SimpleActionClient:
     """actionlib's own client of ``name``, connected (its result topic too)."""
     c = actionlib.SimpleActionClient(name, getattr(owl, f"{name}Action"))
-    assert c.wait_for_server(rospy.Duration(60)), f"no {name} server"
+    wait_for_server(c, 60)
     deadline = time.monotonic() + 30
     while c.action_client.result_sub.get_num_connections() == 0:
         assert time.monotonic() < deadline, f"{name}: result topic not connected"

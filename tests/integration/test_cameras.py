@@ -21,7 +21,7 @@ from dynamic_reconfigure.msg import BoolParameter, Config
 from sensor_msgs.msg import CameraInfo, Image, JointState, PointCloud2
 from std_msgs.msg import Empty, Float64
 
-from ow_bringup.testing import advertise, subscribe, tf_buffer, wait_connected
+from ow_bringup.testing import advertise, subscribe, tf_buffer, wait_connected, wait_for_server
 from ow_cameras import protocol
 from ow_cameras.conversions import cloud_points
 from ow_cameras.rig import LEFT_OPTICAL_FRAME
@@ -129,7 +129,7 @@ def cameras(ros_stack):
         (protocol.LIGHT_SET_INTENSITY, LightSetIntensityAction),
     ):
         client = actionlib.SimpleActionClient(name, action)
-        assert client.wait_for_server(rospy.Duration(30.0)), f"no {name} server"
+        wait_for_server(client, 30.0)
         clients[name] = client
     recorder = Recorder(TOPICS)
     loads = Recorder({LOADS_TOPIC: Float64})

@@ -249,7 +249,7 @@ def test_ft_zero_signal_during_find_surface_never_gives_a_surface(stack, continu
             descending.append(fb.pose.position.z)
 
     goal = owl.ArmFindSurfaceGoal(
-        frame=0, relative=False, position=Point(1.7, 0.0, GROUND), normal=Vector3(0, 0, -1),
+        frame=0, relative=False, position=Point(1.7, 0.0, GROUND), normal=Vector3(0, 0, 1),
         distance=0.2, overdrive=0.05, force_threshold=10.0, torque_threshold=10.0,
     )  # fmt: skip
     # The clock stands still but for the test's steps until the fault: the scoop is 12 cm

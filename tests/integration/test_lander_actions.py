@@ -19,7 +19,7 @@ from geometry_msgs.msg import Point
 from sensor_msgs.msg import JointState
 
 import owl_msgs.msg as owl
-from ow_bringup.testing import subscribe
+from ow_bringup.testing import subscribe, wait_for_server
 from ow_description.description import DEFAULT_GROUND_Z
 from ow_lander.msg import (
     ActivateCommsAction,
@@ -67,7 +67,7 @@ def stack(ros_stack, start_lander):
 
 def client(name: str, action: type) -> actionlib.SimpleActionClient:
     c = actionlib.SimpleActionClient(name, action)
-    assert c.wait_for_server(rospy.Duration(SERVER_WAIT_S)), f"no {name} server"
+    wait_for_server(c, SERVER_WAIT_S)
     return c
 
 

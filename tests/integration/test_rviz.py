@@ -276,18 +276,19 @@ def test_the_arm_is_drawn_where_its_joint_states_put_it(screenshot):
     rgb, joints, terrain = screenshot
     u0, v0, scale = _projection(rgb, terrain)
 
-    def window(mask, xy, half_m=0.06):
-        """``mask`` within ``half_m`` of ``xy`` (m): the links' tubes are offset a few cm from
-        the line between their frames."""
+    def window(mask, xy, half_m=0.04):
+        """``mask`` within ``half_m`` of ``xy`` (m)."""
         u, v, h = round(u0 + scale * xy[0]), round(v0 - scale * xy[1]), round(half_m * scale)
         return mask[v - h : v + h + 1, u - h : u + h + 1]
 
     model = LanderModel()
     q = model.q_from(dict(zip(joints.name, joints.position, strict=True)))
-    dist, wrist = model.position(q, "l_dist"), model.position(q, "l_wrist")
+    X_dist = model.fk(q, "l_dist")
     arm, ground = _arm_mask(rgb), _terrain_mask(rgb)
-    for s in (0.25, 0.5, 0.75):  # along the distal link (white), seen from above
-        on_arm = (dist + s * (wrist - dist))[:2]
+    # Along the axis of the distal link's tube (white, 6.5 cm across; l_dist's x from 0.09 m to
+    # 0.5 m, 4 mm below its origin), seen from above.
+    for x in (0.15, 0.295, 0.45):
+        on_arm = (X_dist @ np.array([x, 0.0, -0.004, 1.0]))[:2]
         assert window(arm, on_arm).mean() > 0.3, f"no arm colour around {on_arm} m"
         beside = on_arm + np.array([0.0, 0.6])  # 0.6 m to the left of the arm: bare ground
         assert window(ground, beside).mean() > 0.9, f"no terrain at {beside} m"

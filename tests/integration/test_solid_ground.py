@@ -27,7 +27,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 import owl_msgs.msg as owl
-from ow_bringup.testing import set_terrain, subscribe
+from ow_bringup.testing import set_terrain, subscribe, wait_for_server
 from ow_description.conversions import height_map_from_msg
 from ow_description.description import (
     ARM_JOINTS,
@@ -81,7 +81,7 @@ def stock_client(name: str) -> actionlib.SimpleActionClient:
     if name in CLIENTS:
         return CLIENTS[name]
     client = CLIENTS[name] = actionlib.SimpleActionClient(name, getattr(owl, f"{name}Action"))
-    assert client.wait_for_server(rospy.Duration(60.0)), f"no {name} server"
+    wait_for_server(client, 60.0)
     for sub in (client.action_client.result_sub, client.action_client.feedback_sub):
         assert wait_sending(sub, 30.0), f"{name}: {sub.name} not connected"
     return client

@@ -49,11 +49,6 @@ def _operation(step, config, dig="linear"):
     return to_request(action, goal, np.zeros(6), np.eye(4))
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="ArmFindSurface's normal is the surface normal (OceanWATERS): ow_mission.action_steps "
-    "must send it up, (0, 0, 1), not down",
-)
 def test_the_search_is_the_services():
     config = MissionConfig()
     steps = {s.name: s for s in STEPS}
@@ -63,11 +58,6 @@ def test_the_search_is_the_services():
         assert search[key] == pytest.approx(service[key]), key
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="TaskGrind's (x_start, y_start) is the centre between the passes (OceanWATERS): "
-    "ow_mission.action_steps must send the centre of the service's passes, not their start",
-)
 @pytest.mark.parametrize("step", ["grind", "grind_bottom"])
 def test_the_grind_is_the_services(step):
     config = MissionConfig()
@@ -117,6 +107,9 @@ def test_ground_comes_from_find_surface_final_pose():
     failed = step_response("ArmFindSurface", False, "No surface was found", None)
     assert not failed.success and not failed.ground_found
     assert failed.message == "ArmFindSurface: No surface was found"
+    # OceanWATERS ends a search without contact SUCCEEDED: still no ground.
+    nothing = step_response("ArmFindSurface", True, "No surface was found", result)
+    assert nothing.success and not nothing.ground_found
 
 
 def test_interface_key():

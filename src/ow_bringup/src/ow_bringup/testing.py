@@ -44,6 +44,7 @@ services raises :class:`HarnessError` with the end of that log.
 from __future__ import annotations
 
 import os
+import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from typing import Any
 
@@ -152,6 +153,22 @@ def start_lander(ros_stack: RosStack) -> Callable[..., RosStack]:
         return ros_stack
 
     return start
+
+
+def wait_for_server(client: Any, timeout_s: float = 30.0) -> None:
+    """Wait, in wall time, until a stock ``actionlib.SimpleActionClient`` is connected to its
+    server on all five topics (its own ``wait_for_server`` counts ROS time, which the
+    simulation's clock runs many times faster than the wall, or stops).
+
+    Raises:
+        AssertionError: not connected within ``timeout_s`` s of wall time.
+    """
+    from ow_runtime.action_client import server_connected
+
+    deadline = time.monotonic() + timeout_s
+    while not server_connected(client.action_client):
+        assert time.monotonic() < deadline, f"no {client.action_client.ns} server in {timeout_s} s"
+        time.sleep(0.01)
 
 
 def action_client(name: str, action: type, timeout_s: float = 30.0) -> Any:

@@ -16,14 +16,17 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from ow_lander.operations.workspace import shoulder_yaw_for
+from ow_lander.operations.workspace import GRIND_PASS_SHIFT, shoulder_yaw_for
 from ow_mission.errors import ConfigError
 
 #: N and N m, ArmFindSurface's thresholds (the force ground detector's 10 N rise).
 FIND_SURFACE_FORCE_N = 10.0
 FIND_SURFACE_TORQUE_NM = 10.0
-#: Straight down onto the surface.
-DOWN = (0.0, 0.0, -1.0)
+#: The normal of the flat surface searched (ArmFindSurface's ``normal`` is the surface's, as in
+#: OceanWATERS: the search runs against it, straight down).
+UP = (0.0, 0.0, 1.0)
+#: ArmFindSurface's status text when the search ended without contact (OceanWATERS: a success).
+NO_SURFACE = "No surface was found"
 
 
 def _linear_middle(x: float, y: float, length: float) -> tuple[float, float]:
@@ -34,6 +37,22 @@ def _linear_middle(x: float, y: float, length: float) -> tuple[float, float]:
         yaw = shoulder_yaw_for(mx, my, -math.pi, math.pi)
         mx, my = x + length / 2 * math.cos(yaw), y + length / 2 * math.sin(yaw)
     return mx, my
+
+
+def _grind_centre(x: float, y: float, length: float, parallel: bool) -> tuple[float, float]:
+    """The centre between the two passes of a grind whose first pass starts at (x, y) m:
+    TaskGrind takes the centre, the service the start. The second pass lies to the left of a
+    radial first pass, further out for one across the arm (the heading is aimed at the centre,
+    so iterate)."""
+    cx, cy = x, y
+    for _ in range(8):
+        yaw = shoulder_yaw_for(cx, cy, -math.pi, math.pi)
+        heading = (math.cos(yaw), math.sin(yaw))
+        right = (math.sin(yaw), -math.cos(yaw))
+        along, shift = (heading, (-right[0], -right[1])) if parallel else (right, heading)
+        cx = x + along[0] * length / 2 + shift[0] * GRIND_PASS_SHIFT / 2
+        cy = y + along[1] * length / 2 + shift[1] * GRIND_PASS_SHIFT / 2
+    return cx, cy
 
 
 def action_goal(step: str, request: Mapping[str, Any], dig: str) -> tuple[str, dict[str, Any]]:
@@ -54,19 +73,21 @@ def action_goal(step: str, request: Mapping[str, Any], dig: str) -> tuple[str, d
             "frame": 0,
             "relative": False,
             "position": (r["x"], r["y"], start_z - approach),
-            "normal": DOWN,
+            "normal": UP,
             "distance": approach,
             "overdrive": distance - approach,
             "force_threshold": FIND_SURFACE_FORCE_N,
             "torque_threshold": FIND_SURFACE_TORQUE_NM,
         }
     if step.startswith("grind"):
+        parallel = bool(r["parallel"])
+        x, y = _grind_centre(float(r["x"]), float(r["y"]), float(r["length"]), parallel)
         return "TaskGrind", {
-            "x_start": r["x"],
-            "y_start": r["y"],
+            "x_start": x,
+            "y_start": y,
             "depth": r["depth"],
             "length": r["length"],
-            "parallel": 1.0 if r["parallel"] else 0.0,
+            "parallel": 1.0 if parallel else 0.0,
             "ground_position": r["ground_position"],
         }
     if step.startswith("dig"):
@@ -108,9 +129,10 @@ class StepResponse:
 
 def step_response(action: str, succeeded: bool, text: str, result: Any) -> StepResponse:
     """The response of a goal of ``action`` that ended ``succeeded`` (or not) with status
-    ``text`` and ``result`` (the action's result message, or None)."""
+    ``text`` and ``result`` (the action's result message, or None). ArmFindSurface succeeds
+    when it finds nothing too (OceanWATERS' convention): no ground then."""
     response = StepResponse(succeeded, f"{action}: {text}")
-    if action == "ArmFindSurface" and succeeded and result is not None:
+    if action == "ArmFindSurface" and succeeded and result is not None and NO_SURFACE not in text:
         p = result.final_pose.position
         response.ground_found = True
         response.ground_position = Position(float(p.x), float(p.y), float(p.z))

@@ -79,11 +79,34 @@ def connect(name: str, action: type, timeout_s: float) -> ActionClient:
     """
     client = ActionClient(name, action)
     deadline = time.monotonic() + timeout_s
-    if not client.wait_for_server(rospy.Duration(timeout_s)):
-        msg = f"no {name} action server in {timeout_s} s"
-        raise TimeoutError(msg)
+    while not server_connected(client.action_client):
+        if time.monotonic() >= deadline or rospy.is_shutdown():
+            msg = f"no {name} action server in {timeout_s} s"
+            raise TimeoutError(msg)
+        time.sleep(0.01)
     for sub in (client.action_client.result_sub, client.action_client.feedback_sub):
         if not wait_sending(sub, deadline - time.monotonic()):
             msg = f"{name}: {sub.name} not connected in {timeout_s} s"
             raise TimeoutError(msg)
     return client
+
+
+def server_connected(client: actionlib.ActionClient) -> bool:
+    """Whether ``client`` has heard a server's status and is connected to that server on its
+    goal, cancel, result and feedback topics: the check of actionlib's ``wait_for_server`` made
+    once. Its own loop counts ROS time, which under ``/use_sim_time`` runs many times faster
+    than the wall clock (a 30 s timeout was seen to pass in under a second of a loaded CI) or
+    not at all while the clock is paused."""
+    status = client.last_status_msg
+    if status is None:
+        return False
+    server = status._connection_header["callerid"]
+    if not (
+        client.pub_goal.impl.has_connection(server)
+        and client.pub_cancel.impl.has_connection(server)
+    ):
+        return False
+    return all(
+        any(c.callerid_pub == server for c in sub.impl.connections)
+        for sub in (client.result_sub, client.feedback_sub)
+    )

@@ -150,13 +150,13 @@ class ArmMotions:
         end a whole turn of the hand or scoop yaw away from ``goal`` (the same pose): continue
         from its last row."""
         planner = self.planner
-        # The hand and scoop yaw turn a full turn either way: the goal as solved (near the
-        # operation's reference turn) or the same pose a whole turn nearer to where the joints
-        # are now (after an earlier operation left the wrist a turn away).
+        # The hand and scoop yaw turn a full turn either way: first the same pose a whole turn
+        # nearer to where the joints are now (after an earlier operation left the wrist a turn
+        # away), then the goal as solved (near the operation's reference turn).
         goals = [goal]
         near = planner.unwrap(goal, start)
         if not np.allclose(near, goal):
-            goals.append(near)
+            goals.insert(0, near)
         safe = planner.safe
         for end in goals:
             if planner.path_valid(np.vstack([start, end]), ctx):

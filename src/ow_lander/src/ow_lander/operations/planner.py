@@ -194,7 +194,8 @@ class Operations:
         for carry, pour in goals:
             try:
                 approach = self.planner.plan_free(start, carry, ctx)
-                tip = self.planner.plan_free(carry, pour, ctx)
+                # From where the approach ended (it may end a whole turn of a wrist yaw away).
+                tip = self.planner.plan_free(approach[-1], pour, ctx)
             except PlanningError as error:
                 errors.append(str(error))
                 continue
