@@ -289,8 +289,8 @@ def test_busy_both_ways(stack, joints):
         executing.pause()
         assert c.get_state() == GoalStatus.ACTIVE
         state, _, text = run("ArmUnstow", owl.ArmUnstowGoal(), timeout=30)
-        assert state == GoalStatus.REJECTED
-        assert text == "busy: ArmMoveJoints goal is running"
+        assert state == GoalStatus.ABORTED
+        assert text == "Arm is already checked out by the ArmMoveJoints action server"
         response = stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
         assert not response.success
         assert response.message == "busy: ArmMoveJoints goal is running; request refused"
@@ -307,8 +307,8 @@ def test_busy_both_ways(stack, joints):
         executing.pause()
         state, _, text = run("ArmStow", owl.ArmStowGoal(), timeout=30)
     call.join()
-    assert state == GoalStatus.REJECTED
-    assert text == "busy: /arm/unstow service is running"
+    assert state == GoalStatus.ABORTED
+    assert text == "Arm is already checked out by the /arm/unstow service"
     assert answer[0].success, answer[0].message
 
 

@@ -180,7 +180,7 @@ def test_lock_half_way_through_a_grind_stops_the_arm_and_fails_naming_the_joint(
 
         # refused while the lock stands, goals and requests alike, naming the joint
         state, _, text = run("ArmUnstow", owl.ArmUnstowGoal())
-        assert state == GoalStatus.REJECTED
+        assert state == GoalStatus.ABORTED
         assert "j_shou_pitch locked (HARDWARE)" in text
         response = stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
         assert not response.success
@@ -196,13 +196,14 @@ def _arm_services_see_goal_error(standing: bool, timeout_s: float = 30.0) -> Non
     error) ``standing`` or not. They learn it from the detector's topics on connections of their
     own, which under load can deliver it later than this test's (as in OceanWATERS, the refusal
     follows the detector's topics). The probe is an ArmMoveJoints goal of no motion (relative,
-    zeros): refused while an error stands, a success that moves nothing otherwise."""
+    zeros): aborted at once naming the fault while an error stands, a success that moves
+    nothing otherwise."""
     still = owl.ArmMoveJointsGoal(True, [0.0] * 6)
-    expected = GoalStatus.REJECTED if standing else GoalStatus.SUCCEEDED
     deadline = time.monotonic() + timeout_s
     while True:
         state, _, text = run("ArmMoveJoints", still)
-        if state == expected:
+        refused = state == GoalStatus.ABORTED and ("is faulted" in text or "error" in text)
+        if refused if standing else state == GoalStatus.SUCCEEDED:
             return
         assert time.monotonic() < deadline, f"arm services still answer {state} ({text})"
         time.sleep(0.05)
@@ -219,8 +220,9 @@ def test_goal_error_refuses_goals_until_fault_clear(stack):
         )
         _arm_services_see_goal_error(True)
         state, _, text = run("ArmUnstow", owl.ArmUnstowGoal())
-        assert state == GoalStatus.REJECTED
-        assert "ARM_GOAL_ERROR stands" in text and "FaultClear" in text
+        assert state == GoalStatus.ABORTED
+        assert text.startswith("Action group, ARM, is faulted. Use the FaultClear action")
+        assert "ARM_GOAL_ERROR stands" in text
         response = stack.service("/arm/stow", Stow)(delete_prev_traj=False)
         assert not response.success and "ARM_GOAL_ERROR stands" in response.message
         clear = action_client("FaultClear", owl.FaultClearAction)

@@ -114,10 +114,11 @@ def test_goal_errors_refuse_only_without_auto_clear(auto_clear):
         assert refused is None and state.refusal("pan_tilt") is None
     else:
         assert refused == (
-            "TASK_GOAL_ERROR stands and auto_clear_goal_errors is false: clear it with "
-            "FaultClear (fault: 8)"
+            "Action group, TASK, is faulted. Use the FaultClear action to make the group "
+            "operable again. (TASK_GOAL_ERROR stands and auto_clear_goal_errors is false; "
+            "fault: 8)"
         )
-        assert "PAN_TILT_GOAL_ERROR stands" in str(state.refusal("pan_tilt"))
+        assert "Action group, PAN_TILT, is faulted" in str(state.refusal("pan_tilt"))
 
 
 def test_a_locked_antenna_joint_fails_pan_tilt_goals():

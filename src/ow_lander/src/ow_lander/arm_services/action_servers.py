@@ -42,7 +42,16 @@ from ow_runtime.status_timer import share_status_timer
 #: s (sim), feedback period: 20 Hz of simulation time (from the joint-state stream).
 FEEDBACK_PERIOD_S = 0.05
 #: The refusal of a goal arriving while another goal or a service request runs.
-BUSY = "busy: {owner} is running"
+#: A goal's end while the arm is taken (OceanWATERS' text, its servers checking the arm out).
+BUSY = "Arm is already checked out by the {owner}"
+
+
+def busy_text(owner: str) -> str:
+    """:data:`BUSY` for ``owner`` as :meth:`ArmServicesNode.claim` names it ("TaskGrind goal"
+    is OceanWATERS' "TaskGrind action server"; "/arm/grind service" stays)."""
+    if owner.endswith(" goal"):
+        owner = owner.removesuffix(" goal") + " action server"
+    return BUSY.format(owner=owner)
 
 
 class ArmOwner(Protocol):
@@ -70,8 +79,9 @@ class ArmActions:
         ``TaskScoopLinear``, ``TaskDeliverSample``, ``TaskDiscardSample``, and ``ArmStop``
         (stops whatever arm execution runs, a goal's or a service's; aborts when none does).
     Goals (OceanWATERS' semantics, :mod:`ow_lander.actions.owl`): a goal arriving while another
-        goal or a service request runs is rejected with "busy: <what> is running", or while a
-        fault refuses it (:mod:`ow_lander.execution.fault_reaction`); a goal with a bad field
+        goal or a service request runs is aborted at once with "Arm is already checked out by
+        the <what>", as is one a fault refuses (:mod:`ow_lander.execution.fault_reaction`;
+        OceanWATERS' "Action group, ARM, is faulted. ..."); a goal with a bad field
         (OceanWATERS' checks and texts, and NaNs), that cannot be planned, or that a fault stops,
         is aborted with the reason; how an executed goal ends and its text are OceanWATERS'
         (:mod:`ow_lander.actions.outcomes`). ArmStop ends the running goal ABORTED ("Stop was
@@ -116,9 +126,11 @@ class ArmActions:
             refused = str(error)
         owner = self.node.claim(f"{name} goal") if refused is None else None
         if refused is not None or owner is not None:
-            text = f"{name}: {refused}" if refused else BUSY.format(owner=owner)
-            rospy.loginfo(f"arm_services: {name} goal rejected: {text}")
-            handle.set_rejected(text=text)
+            # OceanWATERS' servers accept every goal and abort one they cannot run.
+            text = refused if refused else busy_text(owner or "")
+            rospy.loginfo(f"arm_services: {name} goal aborted at once: {text}")
+            handle.set_accepted()
+            handle.set_aborted(self._result(name, None, before_approach=True), text)
             return
         with self._lock:
             self._running = (name, handle.get_goal_id().id)

@@ -150,9 +150,11 @@ class FaultReaction:
         or None."""
         bit, name = GOAL_ERRORS[group]
         if self.system & bit and not self.auto_clear:
+            # OceanWATERS' text, then what stands.
             return (
-                f"{name} stands and auto_clear_goal_errors is false: clear it with FaultClear "
-                f"(fault: {bit})"
+                f"Action group, {group.upper()}, is faulted. Use the FaultClear action to make "
+                f"the group operable again. ({name} stands and auto_clear_goal_errors is false; "
+                f"fault: {bit})"
             )
         if group == "pan_tilt":
             return self.pan_tilt_error()
