@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -31,6 +31,7 @@ import numpy.typing as npt
 
 from ow_description.description import ARM_JOINTS, SCOOP_TIP_FRAME
 from ow_description.model import LanderModel
+from ow_lander.config import ExecutionConfig
 from ow_lander.errors import GoalError
 from ow_runtime.names import ARM_ACTIONS
 
@@ -59,6 +60,10 @@ FloatArray = npt.NDArray[np.float64]
 CARTESIAN_TOLERANCE = (0.01, 0.05)
 #: rad, how close each arm joint must end to its target, modulo a turn (OceanWATERS).
 JOINT_TOLERANCE = 0.05
+#: s of simulation time OceanWATERS' arm_controller allows after a trajectory's last point to
+#: reach it (``goal_time``); it checks no tracking error on the way (its trajectory tolerances
+#: are 0, "not checked"). Goals run with these constraints (:func:`controller_constraints`).
+CONTROLLER_GOAL_TIME_S = 50.0
 #: Frames a goal's ``frame`` may name.
 FRAMES = {0: "base_link", 1: SCOOP_TIP_FRAME}
 #: The scoop bottom's outward normal in the tool frame (ArmFindSurface turns it against the
@@ -100,6 +105,13 @@ class ActionRequest:
         torque_threshold``: a threshold <= 0 (the message default is 0) trips at its first
         check, so the guarded motion does not move."""
         return self.wrench_limits is not None and min(self.wrench_limits) <= 0.0
+
+
+def controller_constraints(config: ExecutionConfig) -> ExecutionConfig:
+    """``config`` with OceanWATERS' trajectory constraints for an action goal: no abort on a
+    joint lagging its set-point (a dig the terrain holds back carries on, as OceanWATERS'), and
+    :data:`CONTROLLER_GOAL_TIME_S` after the last point to arrive."""
+    return replace(config, max_tracking_error_rad=math.inf, settle_timeout_s=CONTROLLER_GOAL_TIME_S)
 
 
 def validate_goal(action: str, goal: Mapping[str, Any]) -> None:

@@ -27,6 +27,7 @@ from ow_lander.actions.owl import (
     ActionRequest,
     action_values,
     arm_state,
+    controller_constraints,
     to_request,
     validate_goal,
 )
@@ -239,7 +240,8 @@ class ArmActions:
         else:
             feedback = partial(self._send_feedback, name, handle, request, approach)
             limits = None if request.breaches_at_once else request.wrench_limits
-            result = executor.execute(trajectory, limits, feedback)
+            constraints = controller_constraints(executor.config)
+            result = executor.execute(trajectory, limits, feedback, constraints)
         state = self._state(result.hold)
         began = approach is None or approach.begun
         outcome = execution_outcome(name, request, result, state, self._stop_called.is_set(), began)

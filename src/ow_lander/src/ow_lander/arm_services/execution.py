@@ -107,16 +107,18 @@ class ArmExecutor(ArmObserver):
         trajectory: Trajectory,
         wrench_limits: tuple[float, float] | None = None,
         on_sample: SampleCallback | None = None,
+        config: ExecutionConfig | None = None,
     ) -> ExecutionResult:
         """Execute ``trajectory`` and watch it until it ends (see
         :mod:`ow_lander.execution.monitor`); publish a guarded descent's result once.
         ``wrench_limits`` (N, N m): a guarded action's force/torque thresholds; ``on_sample``:
-        called on every joint state meanwhile.
+        called on every joint state meanwhile; ``config``: instead of the node's execution
+        configuration (an action goal's constraints).
 
         Raises:
             PlanningError: no joint state to start from.
         """
-        cfg = self.config
+        cfg = self.config if config is None else config
         refused = unknown_joints(trajectory) or start_error(trajectory, self.current_joints(), cfg)
         if refused is not None:
             return refused
