@@ -131,7 +131,7 @@ class ArmActions:
             text = refused if refused else busy_text(owner or "")
             rospy.loginfo(f"arm_services: {name} goal aborted at once: {text}")
             handle.set_accepted()
-            handle.set_aborted(self._result(name, None, before_approach=True), text)
+            handle.set_aborted(self._early_result(name), text)
             return
         with self._lock:
             self._running = (name, handle.get_goal_id().id)
@@ -179,13 +179,12 @@ class ArmActions:
         try:
             end = self._carry_out(name, handle, goal, parameters, notes)
         except GoalError as error:
-            end = (handle.set_aborted, self._result(name, None, before_approach=True), str(error))
+            end = (handle.set_aborted, self._early_result(name), str(error))
         except REQUEST_ERRORS as error:
             text = f"{name} failed: {error}"
             if name == "ArmFindSurface":
                 text += SETUP_FAILED
-            result = self._result(name, None, before_approach=True)
-            end = (handle.set_aborted, result, text)
+            end = (handle.set_aborted, self._early_result(name), text)
         except Exception as error:
             rospy.logerr("arm_services: %s goal crashed: %r", name, error)
             end = (handle.set_aborted, None, f"{name} failed with an internal error: {error!r}")
@@ -261,6 +260,15 @@ class ArmActions:
         executor = self.node.executor
         joints = {**executor.current_joints(), **(hold or {})}
         return arm_state(self.node.model, joints, *executor.wrench())
+
+    def _early_result(self, name: str) -> Any:
+        """The result of a goal that ended before anything moved: where the arm is, or the
+        empty result when that is not known (no joint state yet: the goal still ends)."""
+        try:
+            return self._result(name, None, before_approach=True)
+        except Exception as error:  # the end must go out whatever failed here
+            rospy.logwarn(f"arm_services: {name} result left empty: {error}")
+            return getattr(owl, f"{name}Result")()
 
     def _result(
         self,
