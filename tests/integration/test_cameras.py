@@ -321,7 +321,8 @@ def _until(condition: Callable[[], bool], timeout_s: float = 10.0) -> None:
 
 def test_the_trigger_fault_fails_a_capture_without_a_left_image(cameras):
     clients, recorder, _, _, _ = cameras
-    # What the /faults server publishes once it serves camera_left_trigger_failure.
+    # What the /faults server publishes on a change (test_camera_fault.py sets the fault
+    # through the server itself, with the detector).
     changes = wait_connected(advertise(CHANGES_TOPIC, FaultChange, queue_size=1, latch=True))
     changes.publish(_fault_change(True, 1))
     time.sleep(0.5)

@@ -31,6 +31,7 @@ import rospy
 import yaml
 from PIL import Image
 
+from ow_cameras.rig import LEFT_OPTICAL_FRAME, PANEL_LINK, X_panel
 from ow_description.conversions import height_map_from_msg
 from ow_description.model import URDF_PATH, LanderModel
 from ow_lander.operations.planner import DOCK_CENTRE, POUR_TILT
@@ -227,13 +228,17 @@ def test_trench_is_where_requested(mission, carved):
     # acceptance on this side is test_trench_bottom_within_1cm.
     assert errors.min() >= -2 * TRENCH_TOLERANCE_M, errors.round(4)
 
-    # Untouched terrain, away from the trench, is exactly as made.
+    # Away from the trench no tool cut: the terrain is as made, but for the regolith the scoop
+    # spilled there (docs/regolith.md), which only raises it, by less than what was dug out.
     cx, cy = carved.cell_centres()
     gx, gy = np.meshgrid(cx, cy)
     along = np.clip(gx, X, X + TRENCH_LENGTH)
     far = np.hypot(gx - along, gy - Y) > UNTOUCHED_DISTANCE_M
     assert far.sum() > 0.9 * far.size
-    assert np.abs(carved.heights - made.heights)[far].max() < 1e-6
+    change = carved.heights - made.heights
+    assert change[far].min() > -1e-6
+    cell = carved.resolution**2
+    assert change[far].sum() * cell < -change[~far][change[~far] < 0].sum() * cell
 
 
 def test_trench_bottom_within_1cm(mission, carved, record_property):
@@ -425,6 +430,54 @@ def test_a_run_is_a_function_of_its_mission_file(pair, no_ground):
     assert differences(mission.run_dir, again.run_dir) == []
     # A mission that found no ground and stopped differs (the comparison can fail).
     assert differences(mission.run_dir, no_ground.run_dir, ["/joint_states"]) != []
+
+
+def _ply_points(path: Path) -> np.ndarray:
+    """(n, 3) m of a binary PLY of x y z float and red green blue uchar vertices."""
+    head, body = path.read_bytes().split(b"end_header\n", 1)
+    assert b"format binary_little_endian 1.0" in head
+    layout = [(n, "<f4") for n in "xyz"] + [(n, "u1") for n in ("red", "green", "blue")]
+    vertices = np.frombuffer(body, dtype=layout)
+    return np.column_stack([vertices[n].astype(np.float64) for n in "xyz"])
+
+
+def test_the_workspace_is_captured_before_the_first_arm_step(mission):
+    """The stereo capture (OceanWATERS' CameraCapture) of the simulation at t = 0, the mast
+    aimed at the trench: its files are in the run directory, the report shows the picture, and
+    its point cloud, put in base_link with the URDF's kinematics at the recorded mast angles,
+    lies on the terrain as made (not on the report's own numbers)."""
+    capture = mission.report["capture"]
+    assert capture["success"], capture["message"]
+    assert capture["stamp_s"] == 0.0 == mission.step("unstow")["sim_start_s"]
+    with Image.open(mission.run_dir / capture["image"]) as image:
+        assert (image.size, image.mode) == ((800, 600), "RGB")
+    points = _ply_points(mission.run_dir / capture["cloud"])
+    assert len(points) == capture["cloud_points"] > 0.4 * 800 * 600
+
+    state = next(msg for msg, _ in _messages(mission.bags, "/joint_states"))
+    assert state.header.stamp.to_sec() == 0.0
+    model = LanderModel()
+    q = model.q_from(dict(zip(state.name, state.position, strict=True)))
+    X_base_left = model.fk(q, PANEL_LINK) @ X_panel(LEFT_OPTICAL_FRAME)
+    base = points @ X_base_left[:3, :3].T + X_base_left[:3, 3]
+    terrain = parse_terrain_spec(TERRAIN)
+    on_terrain = [abs(z - float(terrain.height_at(x, y))) for x, y, z in base[::97]]
+    assert np.median(on_terrain) < GROUND_TOLERANCE_M
+
+    site = capture["site"]
+    assert site["valid_fraction"] > 0.9  # the trench site in view, matched
+    assert site["ground_z"] == pytest.approx(mission.report["ground_z"], abs=GROUND_TOLERANCE_M)
+    md = (mission.run_dir / "report.md").read_text()
+    assert image_links(md)[0] == capture["site_image"] == mission.report["figures"]["workspace"]
+    assert f"`{capture['cloud']}`" in md
+
+
+def test_the_capture_is_a_function_of_the_mission_file(pair):
+    """The two runs of the same file made the same picture and cloud, byte for byte."""
+    mission, again = pair
+    for key in ("image", "site_image", "cloud"):
+        name = mission.report["capture"][key]
+        assert (mission.run_dir / name).read_bytes() == (again.run_dir / name).read_bytes(), name
 
 
 def _raw(bags: list[Path], topic: str) -> list[bytes]:

@@ -38,12 +38,14 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("ow_bringup",),  # launch, node configuration, the harness
     ("ow_mission",),  # the autonomy client
 )
-#: Imports within a layer: the simulation applies the fault injector's fault set and takes its
-#: terrain forces from the DEM bridge's models; the battery follows the injected power faults;
-#: the cameras follow the /faults changes (their trigger fault) and speak the power loads protocol.
+#: Imports within a layer: the simulation applies the fault injector's fault set, takes its
+#: terrain forces from the DEM bridge's models and follows the regolith its tools move; the
+#: battery follows the injected power faults; the cameras follow the /faults changes (their
+#: trigger fault) and speak the power loads protocol.
 SAME_LAYER = {
     ("ow_sim_bullet", "ow_faults"),
     ("ow_sim_bullet", "ow_dem_bridge"),
+    ("ow_sim_bullet", "ow_regolith"),
     ("ow_power", "ow_faults"),
     ("ow_cameras", "ow_faults"),
     ("ow_cameras", "ow_power"),
@@ -68,6 +70,7 @@ ROS_FREE = (
     "ow_regolith.carving_ledger",
     "ow_regolith.config",
     "ow_regolith.tracker",
+    "ow_sim_bullet.regolith",
     "ow_cameras.render",
     "ow_cameras.stereo",
     "ow_cameras.capture",

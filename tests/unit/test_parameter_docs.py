@@ -25,8 +25,9 @@ TABLES = {
     ),
     "docs/viz.md": (("src/ow_viz/config/viz.yaml", ""),),
 }
-#: Defaults the table gives in words, not as a value (each is described in its row).
-IN_WORDS = {"stowed pose", "spec §4.2"}
+#: Defaults the table gives in words, not as a value (each is described in its row, or on the
+#: page named: the regolith's nested parameters).
+IN_WORDS = {"stowed pose", "spec §4.2", "docs/regolith.md"}
 
 _ROW = re.compile(r"^\| (`[a-z_]+`(?:, `[a-z_]+`)*) \| ([^|]*) \|")
 

@@ -2,12 +2,14 @@
 they hold the built-in defaults, and the mission's layers go on top of them."""
 
 from collections.abc import Callable
+from dataclasses import asdict
 from typing import Any
 
 import pytest
 
 from ow_bringup.errors import ConfigError
 from ow_bringup.node_config import STACK_NODES, merge, shipped_parameters, stack_parameters
+from ow_cameras.config import CameraConfig
 from ow_faults.injection import FaultSet
 from ow_lander.config import ArmServicesConfig
 from ow_lander.telemetry.config import TelemetryConfig
@@ -29,6 +31,7 @@ PARSERS: dict[str, Callable[[Any], Any]] = {
     "record": RecorderConfig.from_dict,
     "viz": VizConfig.from_dict,
     "telemetry": TelemetryConfig.from_dict,
+    "camera": CameraConfig.from_dict,
     "faults": FaultSet.from_dict,
     "detector": dict,  # no parameters
 }
@@ -129,7 +132,13 @@ def test_the_mission_runs_the_monitors_as_components_of_one_node(tmp_path):
     config = MissionConfig.from_dict({"node_params": {"telemetry": {"rate_hz": 0}}})
     params = node_parameters(config, tmp_path)
     processes = stack_processes(params, "circular")
-    assert [p.executable for p in processes] == ["record", "sim", "arm_services", "monitors"]
+    assert [p.executable for p in processes] == [
+        "record",
+        "sim",
+        "arm_services",
+        "camera",
+        "monitors",
+    ]
     # Every node of the stack runs: on its own or as a component.
     assert {p.executable for p in processes[:-1]} | set(MONITORS) == set(PARSERS)
     monitors = processes[-1]
@@ -152,6 +161,31 @@ def test_the_mission_runs_the_monitors_as_components_of_one_node(tmp_path):
     }
     assert "/arm/dig_circular" in processes[2].services
     assert "/arm/dig_linear" not in processes[2].services
+    # The camera node on its own (it renders: a capture must not stall the monitors' streams),
+    # ready once its action servers are up, configured from its shipped YAML.
+    camera = processes[3]
+    assert (camera.package, camera.topics) == ("ow_cameras", ("/CameraCapture/status",))
+    assert camera.params == params["camera"]
+
+
+def test_the_mission_aims_the_mast_at_the_trench_and_keeps_the_papers_power(tmp_path):
+    from ow_mission.mission import node_parameters
+    from ow_mission.mission_config import MissionConfig
+    from ow_mission.workspace_capture import mast_aim
+
+    config = MissionConfig.from_dict({"x": 1.5, "y": -0.6})
+    params = node_parameters(config, tmp_path)
+    initial = params["sim"]["initial_positions"]
+    aim = mast_aim(asdict(config))
+    assert (initial["j_ant_pan"], initial["j_ant_tilt"]) == (aim["j_ant_pan"], aim["j_ant_tilt"])
+    assert initial["j_shou_yaw"] == stack_parameters()["sim"]["initial_positions"]["j_shou_yaw"]
+    lights = CameraConfig.from_dict(params["camera"]).lights
+    assert (lights.left, lights.right, lights.power_w) == (0.0, 0.0, 4.8)  # no 9.6 W in P0
+    # A mission file may still point the mast elsewhere, or turn the lights on.
+    own = {"sim": {"initial_positions": {"j_ant_pan": 0.5}}, "camera": {"lights": {"left": 1}}}
+    params = node_parameters(MissionConfig.from_dict({"node_params": own}), tmp_path)
+    assert params["sim"]["initial_positions"]["j_ant_pan"] == 0.5
+    assert (params["camera"]["lights"]["left"], params["camera"]["lights"]["right"]) == (1, 0.0)
 
 
 def test_faults_injected_from_the_start_go_to_the_monitors_fault_server(tmp_path):

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import math
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,18 +20,21 @@ from ow_cameras.conversions import (
     cloud_msg,
     cloud_points,
     image_msg,
+    image_pixels,
     transform_msg,
 )
-from ow_cameras.errors import ConfigError, GoalError
+from ow_cameras.errors import CameraError, ConfigError, GoalError, RigError
 from ow_cameras.rig import (
     BASELINE_M,
     FIXED_FRAMES,
     LEFT_OPTICAL_FRAME,
     PANEL_LINK,
+    Mast,
     Pinhole,
     RigPose,
     X_panel,
 )
+from ow_description.description import URDF_PATH
 from ow_description.model import LanderModel
 
 DOCS = Path(__file__).resolve().parents[3] / "docs" / "cameras.md"
@@ -212,6 +217,7 @@ def test_messages_carry_the_arrays():
     image = image_msg(rgb, 0, "frame")
     assert (image.width, image.height, image.step, image.encoding) == (8, 6, 24, "rgb8")
     assert np.array_equal(np.frombuffer(image.data, np.uint8).reshape(6, 8, 3), rgb)
+    assert np.array_equal(image_pixels(image), rgb)
     points = np.full((6, 8, 3), np.nan, dtype=np.float32)
     points[2, 3] = (0.1, -0.2, 2.5)
     cloud = cloud_msg(points, rgb, 0, "frame")
@@ -225,6 +231,27 @@ def test_messages_carry_the_arrays():
     info = camera_info_msg(pinhole, 0, "frame", -pinhole.focal_px * BASELINE_M)
     assert info.P[3] == pytest.approx(-pinhole.focal_px * BASELINE_M)
     assert info.K[2] == pytest.approx(3.5) and info.D == [0.0] * 5
+
+
+@pytest.mark.parametrize(
+    ("encoding", "data", "message"),
+    [
+        ("mono8", bytes(48), "encoding 'mono8' with 48 bytes is not an rgb8 image"),
+        ("rgb8", bytes(100), "with 100 bytes is not an rgb8 image of 6 rows of 24 bytes"),
+    ],
+)
+def test_an_image_that_is_not_rgb8_is_refused_naming_it(encoding, data, message):
+    image = image_msg(np.zeros((6, 8, 3), np.uint8), 0, "frame")
+    image.encoding, image.data = encoding, data
+    with pytest.raises(CameraError, match=message):
+        image_pixels(image)
+
+
+def test_the_readers_leave_pinocchio_out():
+    """The mission reads captures with them and must not load the planners' libraries."""
+    code = "import sys, ow_cameras.conversions, ow_cameras.rig; print('pinocchio' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
 
 
 def test_a_transform_message_holds_the_rotation():
@@ -241,3 +268,56 @@ def test_a_transform_message_holds_the_rotation():
     )
     assert np.allclose(R, X[:3, :3], atol=1e-9)
     assert msg.transform.translation.x == pytest.approx(X[0, 3])
+
+
+# ------------------------------------------------------------------------------ the mast
+@pytest.fixture(scope="module")
+def mast():
+    return Mast.from_urdf()
+
+
+@pytest.mark.parametrize(("pan", "tilt"), [(0.0, 0.0), (1.2, 0.7), (-2.5, -0.4), (3.1, 1.5)])
+def test_the_mast_puts_the_panel_where_the_model_does(model, mast, pan, tilt):
+    q = model.q_from({"j_ant_pan": pan, "j_ant_tilt": tilt})
+    assert np.allclose(mast.X_base_panel(pan, tilt), model.fk(q, PANEL_LINK), atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "point",
+    [(1.8, 0.0, -0.155), (1.65, -0.7, -0.3), (-1.0, 1.9, -0.155), (0.4, -1.5, 0.6)],
+)
+def test_looking_at_a_point_puts_it_on_the_heads_axis_as_the_mast_node_does(model, mast, point):
+    from ow_lander.mast.pan_tilt import AntennaPointing
+
+    pan, tilt = mast.look_at(np.array(point))
+    X = mast.X_base_panel(pan, tilt) @ X_panel("StereoCamera_head_link")
+    along = X[:3, 0]  # the head looks along its +x
+    offset = np.asarray(point) - X[:3, 3]
+    assert offset @ along > 1.0  # in front, metres away
+    miss = np.linalg.norm(offset - (offset @ along) * along)
+    assert miss < 1e-4 * np.linalg.norm(offset)  # the URDF's pi is 3.1416
+    expected = AntennaPointing(model).look_at(np.array(point))
+    assert np.allclose((pan, tilt), expected, atol=1e-4)
+
+
+def test_no_tilt_looks_at_a_point_within_the_lever(mast):
+    with pytest.raises(RigError, match=r"within the camera head's lever of 0\.538 m"):
+        mast.look_at(np.array([0.0, 0.6, 1.2]))
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda u: u.replace('name="j_ant_tilt"', 'name="j_tilt"'), "has no joint 'j_ant_tilt'"),
+        (
+            lambda u: u.replace('<child link="l_ant_panel"/>', '<child link="l_x"/>'),
+            "not base_link",
+        ),
+        (lambda u: u[: len(u) // 2], "cannot read the mast's joints"),
+    ],
+)
+def test_a_urdf_without_the_mast_is_refused_naming_what_lacks(tmp_path, edit, message):
+    urdf = tmp_path / "lander.urdf"
+    urdf.write_text(edit(URDF_PATH.read_text()))
+    with pytest.raises(RigError, match=message):
+        Mast.from_urdf(urdf)

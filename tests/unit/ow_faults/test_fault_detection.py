@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import pytest
 
-from ow_faults.detection import FT_TIMEOUT_S, FaultDetector
+from ow_faults.detection import FT_TIMEOUT_S, FaultDetector, action_group, cleared_text
 from ow_faults.errors import FaultError
 from ow_faults.injection import LOCKABLE_JOINTS, FaultSet
 from owl_msgs.msg import ArmFaultsStatus as Arm
+from owl_msgs.msg import CameraFaultsStatus as Camera
 from owl_msgs.msg import PanTiltFaultsStatus as PanTilt
 from owl_msgs.msg import PowerFaultsStatus as Power
 from owl_msgs.msg import SystemFaultsStatus as System
@@ -31,6 +32,7 @@ def test_oceanwaters_bit_values():
         System.PAN_TILT_EXECUTION_ERROR,
         System.POWER_EXECUTION_ERROR,
     ) == (64, 128, 256)
+    assert (Camera.NO_IMAGE, System.CAMERA_GOAL_ERROR, System.CAMERA_EXECUTION_ERROR) == (1, 16, 32)
 
 
 def test_an_arm_joint_lock_is_hardware_and_an_execution_error_until_released():
@@ -125,6 +127,52 @@ def test_goal_errors_auto_cleared_or_cleared_by_fault_clear():
 
 def test_fault_clear_refuses_other_values():
     with pytest.raises(
-        FaultError, match=r"fault = 4 is not a goal error; FaultClear takes one of \[2, 8, 16, 64\]"
+        FaultError,
+        match=r"Fault index, 4, is not valid. \(fault = 4 is not a goal error; FaultClear takes "
+        r"one of \[2, 8, 16, 64\]\)",
     ):
         FaultDetector().clear(System.ARM_EXECUTION_ERROR)
+    assert cleared_text(System.ARM_GOAL_ERROR) == "ARM goal faults have been cleared."
+    assert cleared_text(System.PAN_TILT_GOAL_ERROR) == "PAN_TILT goal faults have been cleared."
+
+
+def test_a_second_trigger_without_a_left_image_is_no_image_until_an_image_arrives():
+    detector = FaultDetector()
+    detector.on_camera_trigger()
+    assert detector.status.camera == 0  # the first failed capture is not flagged (OceanWATERS)
+    assert detector.on_camera_trigger()
+    assert detector.status.camera == Camera.NO_IMAGE
+    assert detector.status.system == System.CAMERA_EXECUTION_ERROR
+    assert detector.on_camera_image()
+    assert (detector.status.camera, detector.status.system) == (0, 0)
+    detector.on_camera_trigger()
+    detector.on_camera_image()
+    assert not detector.on_camera_trigger()  # answered: nothing pending, nothing flagged
+
+
+def test_an_aborted_camera_goal_is_a_camera_goal_error():
+    detector = FaultDetector()
+    detector.on_goal_status("CameraCapture", "g1", 4)
+    assert detector.status.system == System.CAMERA_GOAL_ERROR
+    assert detector.status.camera == 0  # a goal error is no camera fault
+    assert detector.clear(System.CAMERA_GOAL_ERROR)
+    assert detector.status.system == 0
+    detector.on_goal_status("CameraSetExposure", "g2", 4)
+    assert detector.status.system == System.CAMERA_GOAL_ERROR
+    assert detector.on_goal_status("CameraCapture", "g3", 1)  # a new goal clears it (auto)
+    assert detector.status.system == 0
+
+
+@pytest.mark.parametrize(
+    ("action", "group"),
+    [
+        ("CameraCapture", "camera"),
+        ("CameraSetExposure", "camera"),
+        ("LightSetIntensity", None),  # OceanWATERS' lights belong to no fault group
+        ("PanTiltMoveJoints", "pan_tilt"),
+        ("TaskGrind", "task"),
+        ("ArmUnstow", "arm"),
+    ],
+)
+def test_action_groups_are_oceanwaters(action, group):
+    assert action_group(action) == group

@@ -31,7 +31,7 @@ def test_the_table_is_the_generated_server_config():
     assert FaultSet().as_dict() == {n: p.default for n, p in PARAMETERS.items()}
 
 
-def test_oceanwaters_ranges_and_no_camera():
+def test_oceanwaters_ranges_and_the_camera():
     assert (
         PARAMETERS["signal_bias_failure"].minimum,
         PARAMETERS["signal_bias_failure"].maximum,
@@ -41,7 +41,8 @@ def test_oceanwaters_ranges_and_no_camera():
         360,
     )
     assert PARAMETERS["battery_nodes_to_disconnect"].maximum == 3
-    assert not any("camera" in name for name in PARAMETERS)
+    assert [name for name in PARAMETERS if "camera" in name] == ["camera_left_trigger_failure"]
+    assert PARAMETERS["camera_left_trigger_failure"].group == "cam_faults"
 
 
 @pytest.mark.parametrize(

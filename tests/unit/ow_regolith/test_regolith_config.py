@@ -1,5 +1,5 @@
-"""The regolith parameters: the shipped YAML is the defaults, a terrain picks its column, and
-every mistake is reported with its key."""
+"""The regolith parameters: the shipped YAML (the simulation's ``regolith`` section) is the
+defaults, a terrain picks its column, and every mistake is reported with its key."""
 
 from __future__ import annotations
 
@@ -13,11 +13,13 @@ from ow_regolith.config import DEFAULT_COLUMN, RegolithConfig
 from ow_regolith.errors import ConfigError
 from ow_runtime.errors import ConfigError as RuntimeConfigError
 
-YAML = Path(__file__).resolve().parents[3] / "src" / "ow_regolith" / "config" / "regolith.yaml"
+#: The simulation node's parameters, whose ``regolith`` section configures the regolith.
+SIM_YAML = Path(__file__).resolve().parents[3] / "src" / "ow_sim_bullet" / "config" / "sim.yaml"
 
 
 def test_the_shipped_file_holds_the_defaults():
-    assert RegolithConfig.from_dict(yaml.safe_load(YAML.read_text())) == RegolithConfig()
+    raw = yaml.safe_load(SIM_YAML.read_text())["regolith"]
+    assert RegolithConfig.from_dict(raw) == RegolithConfig()
 
 
 def test_the_default_column_is_an_irradiated_top_layer_over_pristine_ice():

@@ -1,6 +1,7 @@
 """ow_materials against OceanWATERS' definitions at HEAD (nasa/ow_simulator bdcabec0,
 ow_materials/msg/): the same fields, so the same MD5 sums, which genmsg computes here from the
-published field lists; and a bulk as the BulkExcavation /ground_truth/material_ingested carries."""
+published field lists; a bulk as the BulkExcavation /ground_truth/material_ingested carries; and
+the budget as the ow_msgs/RegolithBudget /regolith/budget carries."""
 
 from __future__ import annotations
 
@@ -12,7 +13,9 @@ import genmsg.msg_loader
 import pytest
 
 from ow_materials.msg import BulkExcavation, MaterialConcentration
-from ow_regolith.conversions import bulk_excavation
+from ow_regolith.budget import HOLDING_ACCOUNTS, Account, RegolithBudget
+from ow_regolith.config import DEFAULT_COLUMN
+from ow_regolith.conversions import MAX_UM3, bulk_excavation, regolith_budget
 from ow_regolith.materials import Bulk, MaterialDatabase
 
 #: message -> its fields (type, name) in declaration order, as published at HEAD.
@@ -68,3 +71,33 @@ def test_a_bulk_becomes_a_bulk_excavation_by_material():
     assert [c.proportion for c in msg.composition] == pytest.approx([0.9, 0.1])
     assert bulk.composition() == {"ICE": Fraction(9, 10), "SALT": Fraction(1, 10)}
     assert bulk_excavation(Bulk(), database).composition == []
+
+
+def test_the_budget_becomes_a_regolith_budget_by_account_layer_and_material():
+    database = MaterialDatabase({"ICE": 997.0, "MG_HYDRATES": 2660.0, "SALT": 2160.0})
+    budget = RegolithBudget()
+    budget.excavate(Bulk.of("irradiated", "SALT", 10**12) + Bulk.of("pristine", "ICE", 3 * 10**12))
+    budget.excavate(Bulk.of("snow", "ICE", 5))  # a layer of an earlier terrain's column
+    budget.pour(Bulk.of("pristine", "ICE", 3 * 10**12), Account.IN_DOCK)
+    budget.ingest()
+    msg = regolith_budget(budget.snapshot(), database, DEFAULT_COLUMN)
+    assert (msg.layers, msg.top_layer) == (["irradiated", "pristine", "snow"], "irradiated")
+    assert msg.materials == ["ICE", "MG_HYDRATES", "SALT"]
+    assert msg.excavated.volume_um3 == 4 * 10**12 + 5
+    assert msg.excavated.volume_um3 == sum(
+        getattr(msg, a.value).volume_um3 for a in HOLDING_ACCOUNTS
+    )
+    assert msg.ingested.layer_volumes == pytest.approx([0.0, 3e-6, 0.0])
+    assert msg.ingested.material_volumes == pytest.approx([3e-6, 0.0, 0.0])
+    assert msg.in_scoop.layer_volumes == pytest.approx([1e-6, 0.0, 5e-18])
+    assert msg.in_scoop.mass == pytest.approx(1e-6 * 2160.0 + 5e-18 * 997.0)
+    assert msg.spilled.volume == 0.0 and msg.spilled.layer_volumes == [0.0, 0.0, 0.0]
+
+
+def test_a_volume_beyond_what_uint64_holds_saturates():
+    budget = RegolithBudget()
+    budget.excavate(Bulk.of("pristine", "ICE", 2**64 + 7))
+    database = MaterialDatabase({"ICE": 997.0})
+    msg = regolith_budget(budget.snapshot(), database, DEFAULT_COLUMN)
+    assert msg.excavated.volume_um3 == MAX_UM3 == 2**64 - 1
+    assert msg.excavated.volume == pytest.approx(18.446744073709553)

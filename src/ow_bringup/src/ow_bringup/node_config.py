@@ -14,6 +14,7 @@ node (executable)       files (package ``config/``)          part loaded as the 
 ``record``              ``ow_power``: power.yaml             its ``record:`` section
 ``viz``                 ``ow_viz``: viz.yaml                 the whole file
 ``telemetry``           ``ow_lander``: telemetry.yaml        its ``telemetry:`` section
+``camera``              ``ow_cameras``: camera.yaml          the whole file
 ``faults``              ``ow_faults``: faults.yaml           its ``faults:`` section
 ``detector``            (none: it has no parameters)
 ======================  ===================================  ======================================
@@ -30,6 +31,7 @@ from typing import Any
 import yaml
 
 from ow_bringup.errors import ConfigError
+from ow_cameras.config import CONFIG_FILE as CAMERA_YAML
 from ow_faults.injection import PROFILE_DIR as FAULTS_CONFIG_DIR
 from ow_lander.config import CONFIG_FILE as ARM_SERVICES_YAML
 from ow_lander.telemetry.config import CONFIG_FILE as TELEMETRY_YAML
@@ -68,6 +70,7 @@ STACK_NODES: tuple[NodeFiles, ...] = (
     NodeFiles("ow_lander", "arm_services", ((ARM_SERVICES_YAML, "arm_services"),)),
     NodeFiles("ow_viz", "viz", ((VIZ_YAML, ""),)),
     NodeFiles("ow_lander", "telemetry", ((TELEMETRY_YAML, "telemetry"),)),
+    NodeFiles("ow_cameras", "camera", ((CAMERA_YAML, ""),)),
     NodeFiles("ow_faults", "faults", ((FAULTS_YAML, "faults"),)),
     NodeFiles("ow_faults", "detector", ()),
 )

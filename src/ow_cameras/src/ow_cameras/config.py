@@ -110,6 +110,9 @@ class CameraConfig:
             times exposure time) at which a pixel reaches 255; pixels are linear below it.
         fallback_ground_z: m, flat ground (base_link z) drawn until ``/sim/terrain`` arrives.
         power_w: W drawn by the cameras while a capture runs (OceanWATERS: 0.1).
+        actionlib_status_frequency: Hz of sim time, the action servers' periodic status (read
+            by actionlib itself, actionlib's own key; every goal transition is also published
+            when it happens).
         sun: the sun and the sky.
         lights: the mast lights.
         stereo: the matcher.
@@ -122,6 +125,7 @@ class CameraConfig:
     saturation_j_m2: float = 0.05
     fallback_ground_z: float = DEFAULT_GROUND_Z
     power_w: float = 0.1
+    actionlib_status_frequency: float = 5.0
     sun: SunConfig = field(default_factory=SunConfig)
     lights: LightsConfig = field(default_factory=LightsConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
@@ -160,6 +164,9 @@ class CameraConfig:
             saturation_j_m2=p.positive("saturation_j_m2", d.saturation_j_m2, "J/m^2"),
             fallback_ground_z=p.number("fallback_ground_z", d.fallback_ground_z, unit="m"),
             power_w=p.non_negative("power_w", d.power_w, "W"),
+            actionlib_status_frequency=p.positive(
+                "actionlib_status_frequency", d.actionlib_status_frequency, "Hz"
+            ),
             sun=_sun(p.section("sun")),
             lights=_lights(p.section("lights")),
             stereo=_stereo(p.section("stereo"), width),

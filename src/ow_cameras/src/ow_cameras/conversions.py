@@ -1,4 +1,9 @@
-"""Messages of the cameras' arrays (generated message classes, no rospy)."""
+"""Messages of the cameras' arrays and back (generated message classes, no rospy).
+
+The readers (:func:`image_pixels`, :func:`cloud_points`) serve clients of the camera too (the
+mission), which must not load pinocchio: it is imported by :func:`transform_msg` alone, when the
+node first calls it.
+"""
 
 from __future__ import annotations
 
@@ -6,10 +11,10 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-import pinocchio as pin
 from geometry_msgs.msg import TransformStamped
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2, PointField
 
+from ow_cameras.errors import CameraError
 from ow_cameras.rig import Pinhole
 
 #: The fields of the point clouds, as stereo_image_proc writes them: x, y, z (m) and rgb (the
@@ -74,6 +79,22 @@ def cloud_msg(
     return msg
 
 
+def image_pixels(msg: Any) -> npt.NDArray[np.uint8]:
+    """(height, width, 3) RGB of an rgb8 ``sensor_msgs/Image`` (as :func:`image_msg` writes).
+
+    Raises:
+        CameraError: the image is not rgb8, or its data is not height x step bytes.
+    """
+    if msg.encoding != "rgb8" or len(msg.data) != msg.height * msg.step:
+        msg_text = (
+            f"image of encoding {msg.encoding!r} with {len(msg.data)} bytes is not an rgb8 image "
+            f"of {msg.height} rows of {msg.step} bytes"
+        )
+        raise CameraError(msg_text)
+    rows = np.frombuffer(msg.data, dtype=np.uint8).reshape(msg.height, msg.step)
+    return rows[:, : 3 * msg.width].reshape(msg.height, msg.width, 3)
+
+
 def cloud_points(msg: Any) -> npt.NDArray[np.float32]:
     """(height, width, 3) m of an organised ``PointCloud2`` written by :func:`cloud_msg`."""
     data = np.frombuffer(msg.data, dtype="<f4").reshape(msg.height, msg.width, 4)
@@ -89,6 +110,8 @@ def transform_msg(parent: str, child: str, X: npt.NDArray[np.float64], stamp: An
     msg.transform.translation.x, msg.transform.translation.y, msg.transform.translation.z = (
         float(v) for v in X[:3, 3]
     )
+    import pinocchio as pin
+
     quaternion = pin.Quaternion(np.ascontiguousarray(X[:3, :3]))
     quaternion.normalize()
     x, y, z, w = (float(v) for v in quaternion.coeffs())

@@ -22,3 +22,7 @@ class RenderError(CameraError):
 
 class StereoError(CameraError):
     """A stereo pair cannot be matched (images of different sizes or of the wrong type)."""
+
+
+class RigError(CameraError):
+    """The robot description lacks what the camera rig hangs from (the mast's joints)."""

@@ -1,14 +1,17 @@
 """The names the camera node speaks (no rospy): OceanWATERS' topics, actions and parameters
-(spec section 13). Consumers import them from here.
+(spec section 13). Consumers import them from here; those the fault detector watches too are
+ow_runtime.names' (ow_faults cannot import ow_cameras).
 """
+
+from ow_runtime.names import STEREO_LEFT_IMAGE_RAW, STEREO_LEFT_TRIGGER
 
 #: The stereo camera's namespace (OceanWATERS' ``cameraName``).
 CAMERA_NAMESPACE = "/StereoCamera"
 #: std_msgs/Empty: a capture of both cameras (CameraCapture publishes here; anyone may).
-LEFT_TRIGGER = f"{CAMERA_NAMESPACE}/left/image_trigger"
+LEFT_TRIGGER = STEREO_LEFT_TRIGGER
 #: sensor_msgs/Image (rgb8) and CameraInfo of each camera, as Gazebo's triggered multicamera
 #: publishes them (both with frame_id StereoCameraLeft_optical_frame, as OceanWATERS').
-LEFT_IMAGE_RAW = f"{CAMERA_NAMESPACE}/left/image_raw"
+LEFT_IMAGE_RAW = STEREO_LEFT_IMAGE_RAW
 LEFT_CAMERA_INFO = f"{CAMERA_NAMESPACE}/left/camera_info"
 RIGHT_IMAGE_RAW = f"{CAMERA_NAMESPACE}/right/image_raw"
 RIGHT_CAMERA_INFO = f"{CAMERA_NAMESPACE}/right/camera_info"

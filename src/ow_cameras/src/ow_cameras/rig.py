@@ -13,15 +13,24 @@ the lights are at (+-0.33, 0.66, 1.773) m.
 Transforms are named ``X_<from>_<to>``: 4x4 homogeneous matrices mapping coordinates in frame
 ``<to>`` to frame ``<from>`` (``X_base_optical @ p_optical = p_base``), as in
 :mod:`ow_description.model`.
+
+:class:`Mast` is the mast's own two joints, read from the lander URDF: where the panel is for a
+pan and tilt, and the pan and tilt that look at a point, for clients that must not load a
+dynamics library for two joints (the mission aims the cameras with it).
 """
 
 from __future__ import annotations
 
 import math
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
+
+from ow_cameras.errors import RigError
+from ow_description.description import ANTENNA_JOINTS, BASE_FRAME, URDF_PATH, wrap_angle
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -202,3 +211,130 @@ class RigPose:
             X_base_panel @ X_panel(RIGHT_OPTICAL_FRAME),
             (lights[0], lights[1]),
         )
+
+
+def _axis_rotation(axis: FloatArray, angle: float) -> FloatArray:
+    """(3, 3) rotation by ``angle`` rad about the unit vector ``axis`` (Rodrigues)."""
+    K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * (K @ K)
+
+
+def _floats(element: ET.Element | None, attribute: str, default: str) -> tuple[float, ...]:
+    text = default if element is None else element.get(attribute, default)
+    return tuple(float(v) for v in text.split())
+
+
+@dataclass(frozen=True)
+class MastJoint:
+    """One revolute joint of the mast as the URDF has it.
+
+    Attributes:
+        name: the joint's name.
+        parent: its parent link.
+        child: its child link.
+        X_parent_joint: (4, 4) the joint frame at angle 0 in the parent link (``<origin>``).
+        axis: (3,) unit vector, the rotation axis in the joint frame (``<axis>``).
+    """
+
+    name: str
+    parent: str
+    child: str
+    X_parent_joint: FloatArray
+    axis: FloatArray
+
+    def X_parent_child(self, angle: float) -> FloatArray:
+        """(4, 4) the child link in the parent link at ``angle`` rad."""
+        X = self.X_parent_joint.copy()
+        X[:3, :3] = X[:3, :3] @ _axis_rotation(self.axis, angle)
+        return X
+
+
+@dataclass(frozen=True)
+class Mast:
+    """The antenna mast: ``base_link`` -> ``j_ant_pan`` -> ``j_ant_tilt`` -> ``l_ant_panel``,
+    with the camera head on the panel (:data:`FIXED_FRAMES`).
+
+    Attributes:
+        pan: the pan joint (parent ``base_link``).
+        tilt: the tilt joint (parent: the pan joint's child).
+    """
+
+    pan: MastJoint
+    tilt: MastJoint
+
+    @classmethod
+    def from_urdf(cls, urdf: Path | str = URDF_PATH) -> Mast:
+        """The mast of the URDF at ``urdf`` (default: the lander's).
+
+        Raises:
+            RigError: the file cannot be read, lacks a mast joint, or the joints do not chain
+                from ``base_link`` to :data:`PANEL_LINK`.
+        """
+        try:
+            root = ET.parse(urdf).getroot()
+        except (OSError, ET.ParseError) as error:
+            msg = f"cannot read the mast's joints from {urdf}: {error}"
+            raise RigError(msg) from error
+        joints = []
+        for name in ANTENNA_JOINTS:
+            element = root.find(f"joint[@name='{name}']")
+            parent = None if element is None else element.find("parent")
+            child = None if element is None else element.find("child")
+            if element is None or parent is None or child is None:
+                msg = f"{urdf} has no joint {name!r} with a parent and a child link"
+                raise RigError(msg)
+            origin = element.find("origin")
+            xyz = _floats(origin, "xyz", "0 0 0")
+            rpy = _floats(origin, "rpy", "0 0 0")
+            axis = np.array(_floats(element.find("axis"), "xyz", "1 0 0"))
+            joints.append(
+                MastJoint(
+                    name,
+                    parent.get("link", ""),
+                    child.get("link", ""),
+                    transform((xyz[0], xyz[1], xyz[2]), (rpy[0], rpy[1], rpy[2])),
+                    axis / np.linalg.norm(axis),
+                )
+            )
+        pan, tilt = joints
+        if pan.parent != BASE_FRAME or tilt.parent != pan.child or tilt.child != PANEL_LINK:
+            msg = (
+                f"{urdf}: the mast's joints link {pan.parent} -> {pan.child} and {tilt.parent} -> "
+                f"{tilt.child}, not {BASE_FRAME} -> ... -> {PANEL_LINK}"
+            )
+            raise RigError(msg)
+        return cls(pan, tilt)
+
+    def X_base_panel(self, pan: float, tilt: float) -> FloatArray:
+        """(4, 4) :data:`PANEL_LINK` in base_link at ``pan`` and ``tilt`` rad."""
+        return self.pan.X_parent_child(pan) @ self.tilt.X_parent_child(tilt)
+
+    def look_at(self, point: FloatArray) -> tuple[float, float]:
+        """Pan and tilt (rad) that put ``point`` ((3,) m, base_link) on the camera head's axis.
+
+        OceanWATERS' PanTiltMoveCartesian solution: pan = atan2(dy, dx) + pi/2 about the tilt
+        joint, and the tilt that puts the line of sight, perpendicular to the head's lever of
+        0.538 m across the tilt axis, through the point. Exact for this mast, whose pan axis is
+        vertical through the tilt axis and whose head lies in the plane of both, up to the URDF's
+        rounding of pi (the axis passes within 1e-4 m per m of the point).
+
+        Returns:
+            (pan, tilt) rad, pan in [-pi, pi).
+
+        Raises:
+            RigError: the point is within the lever of the tilt axis (no tilt looks at it).
+        """
+        p = np.asarray(point, dtype=np.float64)
+        d = p - self.X_base_panel(0.0, 0.0)[:3, 3]
+        horizontal, vertical = math.hypot(d[0], d[1]), float(d[2])
+        distance = math.hypot(horizontal, vertical)
+        lever = float(X_panel(CENTER_LINK)[0, 3])
+        if distance <= lever:
+            msg = (
+                f"point ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m is {distance:.3f} m from the tilt "
+                f"axis, within the camera head's lever of {lever:.3f} m: no tilt looks at it"
+            )
+            raise RigError(msg)
+        pan = float(wrap_angle(math.atan2(d[1], d[0]) + math.pi / 2))
+        tilt = math.asin(lever / distance) - math.atan2(vertical, horizontal)
+        return pan, tilt

@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
-import pinocchio as pin
 
 from ow_description.description import URDF_PATH
 from ow_description.errors import ModelError
@@ -60,6 +59,8 @@ def urdf_rotation(rpy: tuple[float, float, float]) -> FloatArray:
     """(3, 3) rotation of URDF fixed-axis ``rpy`` (rad), computed as pinocchio's URDF parser
     (urdfdom) does it: through a normalised quaternion. ``pin.rpy.rpyToMatrix`` differs from it
     by up to 4e-16, which would move the sample points off the coal model's placements."""
+    import pinocchio as pin  # here: readers of the shapes alone (configurations) stay light
+
     half_roll, half_pitch, half_yaw = rpy[0] / 2.0, rpy[1] / 2.0, rpy[2] / 2.0
     sr, cr = math.sin(half_roll), math.cos(half_roll)
     sp, cp = math.sin(half_pitch), math.cos(half_pitch)

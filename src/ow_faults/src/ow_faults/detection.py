@@ -1,6 +1,6 @@
 """OceanWATERS' fault detection rules (spec section 6.3), free of ROS: inputs in, bitmasks out.
 
-:class:`FaultDetector` keeps the four status bitmasks of owl_msgs (bit values from the messages'
+:class:`FaultDetector` keeps the five status bitmasks of owl_msgs (bit values from the messages'
 own constants) and updates them from what it is told:
 
 ============================  ==================================================  ===========
@@ -16,10 +16,12 @@ Power LOW_STATE_OF_CHARGE     SOC <= :data:`LOW_SOC`                            
 Power INSTANTANEOUS_CAP._LOSS |dSOC| / SOC_prev >= :data:`CAPACITY_LOSS` between  observed
                               consecutive SOC messages
 Power THERMAL_FAULT           battery temperature >= :data:`THERMAL_C`            observed
-System ARM/PAN_TILT/POWER     the subsystem's status is not 0                     derived
-_EXECUTION_ERROR
-System ARM/TASK/PAN_TILT      a goal of that action group was aborted; a later    observed
-_GOAL_ERROR                   goal clears it when ``auto_clear_goal_errors``,
+Camera NO_IMAGE               a left trigger while the previous one still awaits  observed
+                              its left image; a left image clears it
+System ARM/CAMERA/PAN_TILT/   the subsystem's status is not 0                     derived
+POWER_EXECUTION_ERROR
+System ARM/TASK/CAMERA/       a goal of that action group was aborted; a later    observed
+PAN_TILT_GOAL_ERROR           goal clears it when ``auto_clear_goal_errors``,
                               FaultClear clears it always
 ============================  ==================================================  ===========
 
@@ -34,7 +36,7 @@ from dataclasses import dataclass
 
 from ow_faults.errors import FaultError
 from ow_faults.injection import ANTENNA_LOCKS, ARM_LOCKS, FaultSet
-from owl_msgs.msg import ArmFaultsStatus, PanTiltFaultsStatus, PowerFaultsStatus
+from owl_msgs.msg import ArmFaultsStatus, CameraFaultsStatus, PanTiltFaultsStatus, PowerFaultsStatus
 from owl_msgs.msg import SystemFaultsStatus as System
 
 #: OceanWATERS' detection thresholds: SOC at or below, relative SOC drop between two messages at
@@ -48,10 +50,19 @@ THERMAL_C = 70.0
 #: with a false NO_FORCE_DATA (make test, load ~8); 30 s of sim is 0.75 s of wall time at 40x.
 FT_TIMEOUT_S = 30.0
 
+
 #: The action groups whose aborted goals are goal errors, with their bit.
+def cleared_text(fault: int) -> str:
+    """FaultClear's status text once goal error ``fault`` is cleared (OceanWATERS': "ARM goal
+    faults have been cleared.")."""
+    group = next(g for g, v in GOAL_ERRORS.items() if v == fault)
+    return f"{group.upper()} goal faults have been cleared."
+
+
 GOAL_ERRORS = {
     "arm": System.ARM_GOAL_ERROR,
     "task": System.TASK_GOAL_ERROR,
+    "camera": System.CAMERA_GOAL_ERROR,
     "pan_tilt": System.PAN_TILT_GOAL_ERROR,
 }
 #: actionlib_msgs/GoalStatus values read here.
@@ -67,6 +78,8 @@ def action_group(action: str) -> str | None:
         return "task"
     if action.startswith("PanTilt"):
         return "pan_tilt"
+    if action.startswith("Camera"):
+        return "camera"
     if action.startswith("Arm"):
         return "arm"
     return None
@@ -74,12 +87,13 @@ def action_group(action: str) -> str | None:
 
 @dataclass(frozen=True)
 class FaultStatus:
-    """The four bitmasks (owl_msgs ``value`` fields)."""
+    """The five bitmasks (owl_msgs ``value`` fields)."""
 
     arm: int = 0
     pan_tilt: int = 0
     power: int = 0
     system: int = 0
+    camera: int = 0
 
 
 class FaultDetector:
@@ -95,6 +109,8 @@ class FaultDetector:
         self._flags_since_ft_s: float | None = None
         self._stale_ft = False
         self._soc: float | None = None
+        self._camera = 0
+        self._camera_pending = False
         self._faults = FaultSet()
         self._seen: dict[str, tuple[str, int]] = {}
         self._status = FaultStatus()
@@ -163,6 +179,20 @@ class FaultDetector:
         self._power = bits
         return self._update()
 
+    def on_camera_trigger(self) -> bool:
+        """A trigger of the left camera: NO_IMAGE when the previous trigger's left image has not
+        arrived (so the first failed capture is not flagged, the second one is: OceanWATERS')."""
+        if self._camera_pending:
+            self._camera = CameraFaultsStatus.NO_IMAGE
+        self._camera_pending = True
+        return self._update()
+
+    def on_camera_image(self) -> bool:
+        """A left camera image: the trigger is answered, NO_IMAGE cleared."""
+        self._camera = 0
+        self._camera_pending = False
+        return self._update()
+
     def on_goal_status(self, action: str, goal_id: str, status: int) -> bool:
         """The newest goal of ``action`` has ``status`` (actionlib_msgs/GoalStatus); only a
         change of goal or status counts (status arrays repeat)."""
@@ -183,9 +213,13 @@ class FaultDetector:
         Raises:
             FaultError: ``fault`` is not one of the goal-error values.
         """
-        values = sorted({*GOAL_ERRORS.values(), System.CAMERA_GOAL_ERROR})
+        values = sorted(GOAL_ERRORS.values())
         if fault not in values:
-            msg = f"fault = {fault} is not a goal error; FaultClear takes one of {values}"
+            # OceanWATERS' text, then the values it takes.
+            msg = (
+                f"Fault index, {fault}, is not valid. (fault = {fault} is not a goal error; "
+                f"FaultClear takes one of {values})"
+            )
             raise FaultError(msg)
         self._goal_errors &= ~fault
         return self._update()
@@ -200,7 +234,9 @@ class FaultDetector:
             system |= System.PAN_TILT_EXECUTION_ERROR
         if self._power:
             system |= System.POWER_EXECUTION_ERROR
-        status = FaultStatus(arm, self._pan_tilt, self._power, system)
+        if self._camera:
+            system |= System.CAMERA_EXECUTION_ERROR
+        status = FaultStatus(arm, self._pan_tilt, self._power, system, self._camera)
         changed = status != self._status
         self._status = status
         return changed

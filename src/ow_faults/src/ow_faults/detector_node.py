@@ -9,8 +9,10 @@ from typing import Any
 
 import rospy
 from actionlib_msgs.msg import GoalStatusArray
+from sensor_msgs.msg import Image
+from std_msgs.msg import Empty
 
-from ow_faults.detection import FaultDetector, FaultStatus, action_group
+from ow_faults.detection import FaultDetector, FaultStatus, action_group, cleared_text
 from ow_faults.errors import FaultError
 from ow_faults.listener_node import FaultsListener
 from ow_faults.stream_order import PacingStream
@@ -22,11 +24,15 @@ from ow_runtime.names import (
     ARM_FAULTS_STATUS,
     BATTERY_STATE_OF_CHARGE,
     BATTERY_TEMPERATURE,
+    CAMERA_ACTIONS,
+    CAMERA_FAULTS_STATUS,
     EVERY_MESSAGE,
     FLAGS_JOINT_STATES,
     PAN_TILT_ACTIONS,
     PAN_TILT_FAULTS_STATUS,
     POWER_FAULTS_STATUS,
+    STEREO_LEFT_IMAGE_RAW,
+    STEREO_LEFT_TRIGGER,
     SYSTEM_FAULTS_STATUS,
 )
 from ow_runtime.node import init_node, spin
@@ -36,23 +42,26 @@ from owl_msgs.msg import (
     ArmFaultsStatus,
     BatteryStateOfCharge,
     BatteryTemperature,
+    CameraFaultsStatus,
     FaultClearAction,
     PanTiltFaultsStatus,
     PowerFaultsStatus,
     SystemFaultsStatus,
 )
 
-#: The action servers whose goals make goal errors (arm_services and pan_tilt serve them).
-ACTIONS = (*ARM_ACTIONS, *PAN_TILT_ACTIONS)
+#: The action servers whose goals make goal errors (arm_services, pan_tilt and camera serve
+#: them).
+ACTIONS = (*ARM_ACTIONS, *PAN_TILT_ACTIONS, *CAMERA_ACTIONS)
 #: s of wall time an input waits for the lock flags up to its stamp (ow_faults.stream_order).
 PACING_TIMEOUT_S = 5.0
 
-#: (topic, message class, FaultStatus field) of the four outputs.
+#: (topic, message class, FaultStatus field) of the five outputs.
 OUTPUTS = (
     (ARM_FAULTS_STATUS, ArmFaultsStatus, "arm"),
     (PAN_TILT_FAULTS_STATUS, PanTiltFaultsStatus, "pan_tilt"),
     (POWER_FAULTS_STATUS, PowerFaultsStatus, "power"),
     (SYSTEM_FAULTS_STATUS, SystemFaultsStatus, "system"),
+    (CAMERA_FAULTS_STATUS, CameraFaultsStatus, "camera"),
 )
 
 
@@ -65,12 +74,17 @@ class DetectorNode:
         ``/battery_temperature`` (owl_msgs/BatteryTemperature, degrees C);
         ``/faults/changes`` (ow_msgs/FaultChange: injected F/T zero signal,
         ``auto_clear_goal_errors``; the status a change makes is stamped with its stamp);
-        ``/<Action>/status`` (actionlib_msgs/GoalStatusArray) of the arm, task and pan/tilt
-        actions.
+        ``/StereoCamera/left/image_trigger`` (std_msgs/Empty) and
+        ``/StereoCamera/left/image_raw`` (sensor_msgs/Image): the stereo camera's triggers and
+        left images (NO_IMAGE);
+        ``/<Action>/status`` (actionlib_msgs/GoalStatusArray) of the arm, task, pan/tilt and
+        camera actions.
     Publishes (latched, on every change; ``header.frame_id`` "world", stamp: the simulation
-        time of the input that changed it): ``/arm_faults_status`` (owl_msgs/ArmFaultsStatus),
+        time of the input that changed it, the wall clock's ROS time for a trigger, which has
+        no stamp): ``/arm_faults_status`` (owl_msgs/ArmFaultsStatus),
         ``/pan_tilt_faults_status`` (owl_msgs/PanTiltFaultsStatus), ``/power_faults_status``
-        (owl_msgs/PowerFaultsStatus), ``/system_faults_status`` (owl_msgs/SystemFaultsStatus).
+        (owl_msgs/PowerFaultsStatus), ``/system_faults_status`` (owl_msgs/SystemFaultsStatus),
+        ``/camera_faults_status`` (owl_msgs/CameraFaultsStatus).
     Actions: ``FaultClear`` (owl_msgs/FaultClear): clears one *_GOAL_ERROR (2, 8, 16 or 64);
         another value is rejected naming it.
     """
@@ -110,6 +124,16 @@ class DetectorNode:
             BatteryTemperature,
             lambda m: self._update("on_temperature", m.value, stamp=m.header.stamp),
             queue_size=EVERY_MESSAGE,
+        )
+        # The stereo camera: its trigger (no stamp: the status is stamped now) and left image.
+        rospy.Subscriber(
+            STEREO_LEFT_TRIGGER, Empty, lambda _m: self._update("on_camera_trigger"), queue_size=10
+        )
+        rospy.Subscriber(
+            STEREO_LEFT_IMAGE_RAW,
+            Image,
+            lambda m: self._update("on_camera_image", stamp=m.header.stamp),
+            queue_size=2,
         )
         for action in ACTIONS:
             rospy.Subscriber(
@@ -163,12 +187,14 @@ class DetectorNode:
             try:
                 changed = self.detector.clear(fault)
             except FaultError as error:
-                handle.set_rejected(text=f"FaultClear: {error}")
+                # OceanWATERS' server accepts every goal and aborts a bad one.
+                handle.set_accepted()
+                handle.set_aborted(text=str(error))
                 return
             if changed:
                 self._publish(self.detector.status, rospy.Time.now())
         handle.set_accepted()
-        handle.set_succeeded(text=f"cleared goal error {fault}")
+        handle.set_succeeded(text=cleared_text(fault))
 
 
 def main() -> int:
@@ -177,7 +203,7 @@ def main() -> int:
     DetectorNode()
     rospy.loginfo(
         "detector: publishing /arm_faults_status, /pan_tilt_faults_status, "
-        "/power_faults_status, /system_faults_status"
+        "/power_faults_status, /system_faults_status, /camera_faults_status"
     )
     spin()
     return 0

@@ -1,7 +1,7 @@
 """The injected faults as a validated, frozen value, free of ROS.
 
 The ``/faults`` dynamic_reconfigure server (``cfg/Faults.cfg``) holds OceanWATERS' fault
-parameters (spec section 6.2, without the camera); :data:`PARAMETERS` is the same table here
+parameters (spec section 6.2); :data:`PARAMETERS` is the same table here
 (a unit test checks it against the generated ``ow_faults.cfg.FaultsConfig``). Every consumer
 turns the server's configuration into a :class:`FaultSet`::
 
@@ -77,6 +77,7 @@ def _table() -> dict[str, Parameter]:
         Parameter("arm_motion_continues_in_fault", "fault_behaviors", bool, False),
         Parameter("auto_clear_goal_errors", "fault_behaviors", bool, True),
         *(Parameter(f"{j}_joint_locked_failure", "ant_faults", bool, False) for j in ANTENNA_LOCKS),
+        Parameter("camera_left_trigger_failure", "cam_faults", bool, False),
         *(Parameter(f"{j}_joint_locked_failure", "arm_faults", bool, False) for j in ARM_LOCKS),
         Parameter("enable", "ft_sensor_faults", bool, False),
         Parameter("zero_signal_failure", "ft_sensor_faults", bool, False),
@@ -144,6 +145,7 @@ class FaultSet:
     auto_clear_goal_errors: bool = True
     ant_pan_joint_locked_failure: bool = False
     ant_tilt_joint_locked_failure: bool = False
+    camera_left_trigger_failure: bool = False
     shou_yaw_joint_locked_failure: bool = False
     shou_pitch_joint_locked_failure: bool = False
     prox_pitch_joint_locked_failure: bool = False

@@ -17,3 +17,8 @@ class ReplayError(OwMissionError):
 
 class FiguresError(OwMissionError):
     """A run's figures, made after its mission, are not there and will not come."""
+
+
+class CaptureError(OwMissionError):
+    """The mission's capture of the workspace failed (the camera refused it, or its images did
+    not come)."""

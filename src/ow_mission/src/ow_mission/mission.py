@@ -15,11 +15,13 @@ from pathlib import Path
 from typing import Any
 
 from ow_bringup.node_config import SERVE_FAULTS, STACK_NODES, stack_parameters
+from ow_cameras.protocol import CAMERA_CAPTURE
 from ow_faults.protocol import CHANGES_TOPIC
 from ow_mission.bag_prefetch import BagPrefetch
 from ow_mission.fault_schedule import AppliedFault
 from ow_mission.figures import FiguresProcess, start_figures
 from ow_mission.mission_config import MissionConfig
+from ow_mission.workspace_capture import mast_aim
 from ow_power.config import BATTERY_TOPICS, TELEMETRY_TOPICS
 from ow_runtime.names import (
     ARM_FAULTS_STATUS,
@@ -116,6 +118,9 @@ class MissionReport:
     recording_note: str = ""
     #: What became of each entry of the mission's fault schedule.
     fault_schedule: list[AppliedFault] = field(default_factory=list)
+    #: The stereo capture of the workspace before the first arm step
+    #: (:func:`ow_mission.workspace_capture.write_capture`), None before it was tried.
+    capture: dict[str, Any] | None = None
 
     @property
     def success(self) -> bool:
@@ -172,6 +177,7 @@ class MissionReport:
             "config": {k: v for k, v in asdict(self.config).items()},
             "steps": [{**asdict(s), "sim_time_s": s.sim_time_s} for s in self.steps],
             "fault_schedule": [f.to_json() for f in self.fault_schedule],
+            "capture": self.capture,
         }
 
 
@@ -389,6 +395,16 @@ def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str,
             # Every rospy node receives /clock; the mission's nodes work on the states' stamps
             # and the clock reaches every time the simulation stops at (docs/performance.md).
             "clock_rate_hz": MISSION_CLOCK_HZ,
+            # The mast looks at the trench from the start: the capture before the first arm
+            # step sees it, and no step of the simulation moves the mast (node_params may).
+            "initial_positions": mast_aim(asdict(config)),
+        },
+        # The paper's power: OceanWATERS' mast lights draw 9.6 W all the time at full
+        # intensity, which would add to every step's energy with P0; the sun lights the
+        # capture (node_params {camera: {lights: {left: 1, right: 1}}} turns them on).
+        "camera": {
+            "actionlib_status_frequency": MISSION_ACTION_STATUS_HZ,
+            "lights": {"left": 0.0, "right": 0.0},
         },
         "arm_services": {
             "plan_and_execute": True,
@@ -441,6 +457,8 @@ READY: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "arm_services": ((), ()),  # and the services of the mission's steps
     "viz": ((), (ROBOT_DESCRIPTION,)),
     "telemetry": ((), (ARM_JOINT_POSITIONS,)),
+    # Its action servers (the renderer starts beside them; a capture asked for meanwhile waits).
+    "camera": ((), (f"/{CAMERA_CAPTURE}/status",)),
     "faults": (("/faults/set_parameters",), ("/faults/parameter_updates",)),
     "detector": ((), (SYSTEM_FAULTS_STATUS,)),
 }

@@ -2,7 +2,9 @@
 mission (section 3) through the real services, as an autonomy client runs it (see
 ``docs/mission.md``). It starts a private master and the stack configured by
 :mod:`ow_bringup.node_config`, calls the steps of :data:`ow_mission.mission.STEPS`, and writes
-``runs/<timestamp>/``; a failed step stops it, keeping everything recorded up to then.
+``runs/<timestamp>/``; a failed step stops it, keeping everything recorded up to then. Before
+the first step it captures the workspace with the stereo camera
+(:mod:`ow_mission.workspace_capture`).
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ import os
 import sys
 import threading
 import time
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -28,8 +31,11 @@ from ow_bringup.stack import (
     private_master,
     wait_until,
 )
+from ow_description.description import ANTENNA_JOINTS
 from ow_mission.action_client_node import ActionStepClient
 from ow_mission.bag_prefetch import BagPrefetch
+from ow_mission.camera_client_node import capture_workspace
+from ow_mission.errors import CaptureError
 from ow_mission.fault_schedule_node import FaultScheduleRunner
 from ow_mission.figures import FiguresProcess, tell_figures
 from ow_mission.mission import (
@@ -46,6 +52,7 @@ from ow_mission.mission import (
 from ow_mission.mission_config import USAGE, WAIT_FIGURES, MissionConfig, config_from_argv
 from ow_mission.report import preload, report_reader
 from ow_mission.stack_client_node import sim_clock, stands_at, wait_recorded
+from ow_mission.workspace_capture import failed_capture, trench_footprint, write_capture
 from ow_runtime.errors import ConfigError as AnyConfigError
 from ow_runtime.lockstep_client import LockstepError, wait_until_held
 from ow_runtime.names import CLOCK, JOINT_STATES
@@ -71,6 +78,7 @@ class MissionRunner:
         self._faults: FaultScheduleRunner | None = None
         self._drain: dict[str, float] = {}
         self._hold = False  # the stack holds the simulation between steps (lockstep)
+        self._aim: dict[str, float] = {}  # rad by joint, the mast's pan and tilt from the start
         self.figures: FiguresProcess | None = None  # drawing them after the mission (after_exit)
 
     # ------------------------------------------------------------------------- ROS callbacks
@@ -145,6 +153,8 @@ class MissionRunner:
         params = node_parameters(self.config, self.run_dir)
         self._drain = drain_periods(params)
         self._hold = bool(params["arm_services"]["execution"].get("lockstep_hold"))
+        initial = params["sim"]["initial_positions"]
+        self._aim = {joint: float(initial[joint]) for joint in ANTENNA_JOINTS}
         # Started side by side (the simulation paused), then waited for: each node spends a
         # second or two importing, and they need nothing from one another to start.
         processes = stack_processes(params, self.config.dig)
@@ -173,6 +183,7 @@ class MissionRunner:
         c = self.config
         ground = c.expected_ground
         held = self._held()  # where the lockstep holds the simulation (None: no lockstep)
+        self._capture_workspace()
         for step in STEPS:
             service = step.service.format(dig=c.dig)
             srv_name = step.srv_type.format(Dig=c.dig.capitalize())
@@ -216,6 +227,26 @@ class MissionRunner:
             if not result.success:
                 self.report.error = f"step {step.name} ({service}) failed: {result.message}"
                 return
+
+    def _capture_workspace(self) -> None:
+        """One stereo capture of the workspace, the simulation paused where it stands (t = 0
+        in the lockstep), into the run directory and the report; a failed one is reported, and
+        the steps go on (the trench is the mission file's)."""
+        sim_clock("pause", between_steps=True)
+        wall0 = time.monotonic()
+        try:
+            shot = capture_workspace(self.config.step_timeout_s)
+            capture = write_capture(
+                self.run_dir, shot, self._aim, trench_footprint(asdict(self.config))
+            )
+            share = 100 * capture["site"]["valid_fraction"]
+            outcome = f"{share:.0f} % of the trench's footprint has stereo points"
+        except CaptureError as exc:
+            capture, outcome = failed_capture(str(exc)), f"FAILED: {exc}"
+        # The only wall-clock number of the entry: left out of run comparisons.
+        capture["wall_time_s"] = time.monotonic() - wall0
+        self.report.capture = capture
+        print(f"[mission] capture: {capture['wall_time_s']:.2f} s wall, {outcome}", flush=True)
 
     def _held(self) -> float | None:
         """s, where the arm services hold the simulation (the lockstep); None without the

@@ -33,6 +33,7 @@ from ow_mission.recording import Recording, recording_from_messages
 from ow_mission.replay import ReplayRendering, render_pool, start_replay
 from ow_mission.report_files import Figures, markdown, write_report_files
 from ow_mission.stills import StillsRendering, plan_stills
+from ow_mission.workspace_capture import capture_figure
 from ow_power.bagread import TopicMessages, read_messages
 from ow_power.errors import BagReadError
 
@@ -532,6 +533,7 @@ def write_run_report(
     """
     run_dir = Path(run_dir)
     figures = Figures(draw=draw)
+    capture_figure(run_dir, document, figures)  # first: the mission took it before any step
     completing = bool(document.pop("figures_pending", False)) and draw
     wall0 = time.monotonic()
     bags = sorted((run_dir / "bags").glob("*.bag"))

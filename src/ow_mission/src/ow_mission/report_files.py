@@ -131,7 +131,8 @@ def markdown(run_dir: Path, document: Mapping[str, Any], figures: Figures) -> st
         ]
     lines += [
         "Files: `bags/` (ROS 1 bags: /power, /joint_states, /arm/operation, /sim/terrain, ...), "
-        "`trajectories/` (the planned CSV trajectories), `ros/` (node logs). Rebuild this report "
+        "`trajectories/` (the planned CSV trajectories), `camera/` (the stereo capture of the "
+        "workspace: left image, point cloud), `ros/` (node logs). Rebuild this report "
         "from the bags with `python -m ow_mission.report <run dir>`.",
     ]
     return "\n".join(lines) + "\n"

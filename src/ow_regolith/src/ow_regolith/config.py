@@ -1,6 +1,7 @@
 """The regolith parameters: materials, the layer column of each terrain, the scoop's and the
-dock's shapes, deposits. Validated by a pure :meth:`RegolithConfig.from_dict` (``config/
-regolith.yaml`` holds the defaults, each key with its unit).
+dock's shapes, deposits. Validated by a pure :meth:`RegolithConfig.from_dict` (the ``regolith``
+section of the simulation's ``ow_sim_bullet/config/sim.yaml`` holds the defaults, each key with
+its unit).
 
 Sources of the defaults:
 

@@ -33,7 +33,6 @@ import numpy.typing as npt
 
 from ow_description.description import URDF_PATH
 from ow_description.errors import ModelError
-from ow_description.model import LanderModel
 from ow_description.shapes import CollisionShape, link_shapes
 from ow_regolith.errors import GeometryError
 from ow_regolith.materials import units_from_m3
@@ -156,6 +155,10 @@ class ScoopGeometry:
             GeometryError: a named shape or frame missing, a wall that is not a box, a tip frame
                 over the rim plate, or no cavity.
         """
+        # The model (pinocchio) only here: the configuration imports this module, and the
+        # mission's configuration must stay light (tests/unit/ow_mission/test_mission_imports.py).
+        from ow_description.model import LanderModel
+
         roles = shapes or ScoopShapes()
         try:
             by_name = {s.name: s for s in link_shapes(roles.link, urdf_path)}

@@ -51,6 +51,8 @@ ARM_ACTIONS = (
 )
 #: The antenna mast's actions (``rosrun ow_lander pan_tilt``).
 PAN_TILT_ACTIONS = ("PanTiltMoveJoints", "PanTiltMoveCartesian")
+#: The stereo camera's actions of OceanWATERS' CAMERA fault group (``rosrun ow_cameras camera``).
+CAMERA_ACTIONS = ("CameraCapture", "CameraSetExposure")
 
 
 # Topic and service names that more than one package speaks.
@@ -75,6 +77,11 @@ SYSTEM_FAULTS_STATUS = "/system_faults_status"
 ARM_FAULTS_STATUS = "/arm_faults_status"
 PAN_TILT_FAULTS_STATUS = "/pan_tilt_faults_status"
 POWER_FAULTS_STATUS = "/power_faults_status"
+CAMERA_FAULTS_STATUS = "/camera_faults_status"
+#: The stereo camera's trigger (std_msgs/Empty) and left image (sensor_msgs/Image): the camera
+#: node takes the one and publishes the other, the fault detector watches both.
+STEREO_LEFT_TRIGGER = "/StereoCamera/left/image_trigger"
+STEREO_LEFT_IMAGE_RAW = "/StereoCamera/left/image_raw"
 BATTERY_STATE_OF_CHARGE = "/battery_state_of_charge"
 BATTERY_REMAINING_USEFUL_LIFE = "/battery_remaining_useful_life"
 BATTERY_TEMPERATURE = "/battery_temperature"
@@ -84,6 +91,14 @@ FLAGS_JOINT_STATES = "/flags/joint_states"
 SIM_SCOOP_WRENCH = "/sim/scoop_wrench"
 SIM_GRINDER_WRENCH = "/sim/grinder_wrench"
 SIM_RESUME = "/sim/resume"
+
+# The regolith the simulation follows (ow_regolith in the sim node; docs/regolith.md).
+#: Ingest what lies in the sample dock (ow_msgs/IngestSample); ow_lander's DockIngestSample.
+SIM_INGEST_SAMPLE = f"{SIM_NAMESPACE}/ingest_sample"
+#: The regolith budget (ow_msgs/RegolithBudget, latched), at each change.
+REGOLITH_BUDGET = "/regolith/budget"
+#: OceanWATERS' ground truth of each ingestion (ow_materials/BulkExcavation, latched).
+MATERIAL_INGESTED = "/ground_truth/material_ingested"
 
 # The arm services' outputs and services (rosrun ow_lander arm_services).
 ARM_UNSTOW = "/arm/unstow"

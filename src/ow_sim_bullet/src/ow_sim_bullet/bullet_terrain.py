@@ -8,7 +8,9 @@ continuous) and only the tiles a carve touched are refreshed.
 Bullet fixes a heightfield's vertical extent (its bounding box and origin) when the shape is
 created. Each tile is therefore created once with one cell at ``floor`` and immediately refreshed
 with the true heights: its bounding box then reaches down to ``floor`` and contacts stay correct
-however deep the terrain is carved (never below ``floor``).
+however deep the terrain is carved (never below ``floor``). Above its box Bullet would miss the
+contacts (its broadphase culls by the box): a tile raised above its box's top (regolith deposited
+on it) is made anew, its box reaching :data:`RAISE_HEADROOM` above its new top.
 """
 
 from __future__ import annotations
@@ -25,6 +27,9 @@ FloatArray = npt.NDArray[np.float64]
 TILE_CELLS = 25
 #: m, how far below the lowest initial height the terrain can be carved.
 FLOOR_DEPTH = 0.5
+#: m, how far above its highest cell a tile made anew after a raise reaches (room for more
+#: deposits before it must be made again).
+RAISE_HEADROOM = 0.05
 #: m, radius of the sphere that stands in for each tile's visual shape. The simulation never
 #: draws; without a visual shape of its own, pybullet gives TinyRenderer a mesh of the heightfield
 #: and a 1024 x 1024 checker texture for every tile body (3.3 MB each, 90 MB for 25 tiles).
@@ -54,33 +59,42 @@ class BulletTerrain:
         self._group, self._mask = collision_group, collision_mask
         self._shapes: dict[tuple[int, int], int] = {}
         self._bodies: dict[tuple[int, int], int] = {}
+        #: m, the top of each tile's box (higher cells would not collide).
+        self._ceilings: dict[tuple[int, int], float] = {}
         self.body_ids: list[int] = []
-        visual = pb.createVisualShape(
+        self._visual = pb.createVisualShape(
             pb.GEOM_SPHERE, radius=_VISUAL_STAND_IN_RADIUS, physicsClientId=client
         )
         for r0 in self._row_starts:
             for c0 in self._col_starts:
                 tile = self._tile(heightmap.heights, r0, c0)
-                guarded = tile.copy()
-                guarded[0, 0] = self.floor
-                shape = self._shape(guarded)
-                z_centre = (self.floor + float(tile.max())) / 2.0
-                x = self._origin[0] + (c0 + (tile.shape[1] - 1) / 2.0) * self._res
-                y = self._origin[1] + (r0 + (tile.shape[0] - 1) / 2.0) * self._res
-                body = pb.createMultiBody(
-                    baseMass=0.0,
-                    baseCollisionShapeIndex=shape,
-                    baseVisualShapeIndex=visual,
-                    basePosition=[x, y, z_centre],
-                    physicsClientId=client,
-                )
-                pb.setCollisionFilterGroupMask(
-                    body, -1, collision_group, collision_mask, physicsClientId=client
-                )
-                self._shape(tile, replace=shape)
-                self._shapes[(r0, c0)] = shape
-                self._bodies[(r0, c0)] = body
-                self.body_ids.append(body)
+                self.body_ids.append(self._make_tile(tile, r0, c0, float(tile.max())))
+
+    def _make_tile(self, tile: FloatArray, r0: int, c0: int, ceiling: float) -> int:
+        """Make the body of the tile at (r0, c0) with heights ``tile``, its box reaching from
+        :attr:`floor` to ``ceiling`` (m, >= the tile's highest cell); returns the body."""
+        guarded = tile.copy()
+        guarded[0, 0] = self.floor
+        guarded[-1, -1] = max(float(guarded[-1, -1]), ceiling)
+        shape = self._shape(guarded)
+        z_centre = (self.floor + float(guarded.max())) / 2.0
+        x = self._origin[0] + (c0 + (tile.shape[1] - 1) / 2.0) * self._res
+        y = self._origin[1] + (r0 + (tile.shape[0] - 1) / 2.0) * self._res
+        body = pb.createMultiBody(
+            baseMass=0.0,
+            baseCollisionShapeIndex=shape,
+            baseVisualShapeIndex=self._visual,
+            basePosition=[x, y, z_centre],
+            physicsClientId=self._client,
+        )
+        pb.setCollisionFilterGroupMask(
+            body, -1, self._group, self._mask, physicsClientId=self._client
+        )
+        self._shape(tile, replace=shape)
+        self._shapes[(r0, c0)] = shape
+        self._bodies[(r0, c0)] = body
+        self._ceilings[(r0, c0)] = float(guarded.max())
+        return body
 
     @staticmethod
     def _tile(heights: FloatArray, r0: int, c0: int) -> FloatArray:
@@ -107,9 +121,11 @@ class BulletTerrain:
     def refresh(self, heights: FloatArray, rows: tuple[int, int], cols: tuple[int, int]) -> int:
         """Copy changed heights into the tiles that overlap cells rows x cols (inclusive bounds).
 
+        A tile raised above the top of its box is made anew (:data:`RAISE_HEADROOM`), with
+        the lateral friction of the body it replaces; :attr:`body_ids` then names the new body.
+
         Args:
-            heights: (rows, cols) m, the whole current height map (never above the initial one,
-                never below :attr:`floor`).
+            heights: (rows, cols) m, the whole current height map (never below :attr:`floor`).
             rows: first and last changed row.
             cols: first and last changed column.
 
@@ -123,7 +139,13 @@ class BulletTerrain:
             for c0 in self._col_starts:
                 if c0 > cols[1] or c0 + TILE_CELLS < cols[0]:
                     continue
-                self._shape(self._tile(heights, r0, c0), replace=self._shapes[(r0, c0)])
+                tile = self._tile(heights, r0, c0)
+                top = float(tile.max())
+                if top > self._ceilings[(r0, c0)]:
+                    self._remake(tile, r0, c0, top + RAISE_HEADROOM)
+                    refreshed += 1
+                    continue
+                self._shape(tile, replace=self._shapes[(r0, c0)])
                 # Bullet keeps contact points cached between a tool and the old surface for as
                 # long as the two bodies do not move apart. Re-adding the tile to the collision
                 # world (what a filter change does) drops them.
@@ -137,6 +159,15 @@ class BulletTerrain:
                 refreshed += 1
         return refreshed
 
+    def _remake(self, tile: FloatArray, r0: int, c0: int, ceiling: float) -> None:
+        """Replace the tile's body by one whose box reaches ``ceiling`` (m)."""
+        old = self._bodies[(r0, c0)]
+        friction = pb.getDynamicsInfo(old, -1, physicsClientId=self._client)[1]
+        pb.removeBody(old, physicsClientId=self._client)
+        body = self._make_tile(tile, r0, c0, ceiling)
+        pb.changeDynamics(body, -1, lateralFriction=friction, physicsClientId=self._client)
+        self.body_ids[self.body_ids.index(old)] = body
+
     def remove(self) -> None:
         """Delete the terrain bodies from the simulation.
 
@@ -148,3 +179,4 @@ class BulletTerrain:
         self.body_ids.clear()
         self._shapes.clear()
         self._bodies.clear()
+        self._ceilings.clear()

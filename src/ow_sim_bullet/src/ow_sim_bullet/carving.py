@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -91,6 +92,22 @@ def collision_surface_points(urdf_text: str, link_name: str, spacing: float) -> 
     return np.vstack(clouds)
 
 
+@dataclass(frozen=True)
+class CutWindow:
+    """The heights of the window of cells one cut changed, before and after it (what the
+    regolith's ledger is told, :meth:`ow_regolith.tracker.RegolithTracker.terrain_cut`).
+
+    Attributes:
+        before: (h, w) m, the window's heights before the cut.
+        after: (h, w) m, the same after it (never higher).
+        offset: (row, col) of the window's first cell in the height map.
+    """
+
+    before: FloatArray
+    after: FloatArray
+    offset: tuple[int, int]
+
+
 class CarvableSurface(Protocol):
     """The simulator's copy of the terrain (:class:`ow_sim_bullet.bullet_terrain.BulletTerrain`)."""
 
@@ -110,6 +127,9 @@ class CarvableSurface(Protocol):
 
 class TerrainCarver:
     """The terrain's height map, lowered under the tools; the simulator's surface follows it.
+
+    Deposits (regolith poured on the terrain) raise cells (:meth:`raise_cells`); nothing else
+    does.
 
     Carving: the terrain gives way only to a tool that digs (the caller decides: the scoop in a
     dig phase, the grinder grinding; :class:`~ow_sim_bullet.tool_tracking.ToolTracker`);
@@ -154,7 +174,7 @@ class TerrainCarver:
             self._heights, heightmap.resolution, heightmap.origin_x, heightmap.origin_y
         )
         self._surface = self._make_surface(self._heightmap)
-        #: m, a bound above every interpolated terrain height (carving only lowers it).
+        #: m, a bound above every interpolated terrain height (raised with the terrain).
         self._height_bound = float(self._heights.max()) + 1e-9
 
     def replace(self, heightmap: HeightMap) -> None:
@@ -256,7 +276,7 @@ class TerrainCarver:
         position: FloatArray,
         normal_force: float,
         digging: bool,
-    ) -> None:
+    ) -> CutWindow | None:
         """Lower the terrain under one tool (the surface follows at :meth:`commit`).
 
         Args:
@@ -266,6 +286,9 @@ class TerrainCarver:
             normal_force: N, total normal contact force on it in the last step.
             digging: the tool digs (the terrain gives way to it); else only material it is
                 more than :data:`EMBEDDED_DEPTH` inside goes.
+
+        Returns:
+            The window of cells the cut lowered, before and after it; None when it cut nothing.
         """
         config = self._config
         hm = self._heightmap
@@ -306,7 +329,7 @@ class TerrainCarver:
         target = target[inside]
         near = np.flatnonzero(target + slack < heights[cell] + hm.resolution)
         if not len(near):
-            return
+            return None
         # Each point lowers the four corners of its grid cell (the vertices of the simulator's
         # triangles under it).
         cell = cell[near]
@@ -316,16 +339,54 @@ class TerrainCarver:
             np.maximum(heights[cell + cols], heights[cell + cols + 1]),
         )
         if not np.count_nonzero(highest > target + slack):
-            return  # the usual case: nothing above the tool, nothing to cut
+            return None  # the usual case: nothing above the tool, nothing to cut
         corners = (cell[:, None] + corner_offsets).ravel()
         target = np.repeat(target, len(corner_offsets))
         cut = heights[corners] > target + slack
-        if np.count_nonzero(cut):
-            corners = corners[cut]
-            np.minimum.at(heights, corners, target[cut])
-            corner_rows, corner_cols = np.divmod(corners, cols)
-            self._changed_rows += [int(corner_rows.min()), int(corner_rows.max())]
-            self._changed_cols += [int(corner_cols.min()), int(corner_cols.max())]
+        if not np.count_nonzero(cut):
+            return None
+        corners = corners[cut]
+        corner_rows, corner_cols = np.divmod(corners, cols)
+        r0, r1 = int(corner_rows.min()), int(corner_rows.max())
+        c0, c1 = int(corner_cols.min()), int(corner_cols.max())
+        window = (slice(r0, r1 + 1), slice(c0, c1 + 1))
+        before = self._heights[window].copy()
+        np.minimum.at(heights, corners, target[cut])
+        self._changed_rows += [r0, r1]
+        self._changed_cols += [c0, c1]
+        return CutWindow(before, self._heights[window].copy(), (r0, c0))
+
+    def raise_cells(self, rows: IndexArray, cols: IndexArray, raise_m: FloatArray) -> None:
+        """Raise cells (rows[k], cols[k]) by raise_m[k] (m, >= 0): regolith deposited on the
+        terrain (the surface follows at :meth:`commit`).
+
+        Raises:
+            ValueError: arrays of different lengths, a cell beyond the height map, or a negative
+                or non-finite raise.
+        """
+        rows = np.asarray(rows, dtype=np.intp)
+        cols = np.asarray(cols, dtype=np.intp)
+        raise_m = np.asarray(raise_m, dtype=np.float64)
+        if not len(rows):
+            return
+        n_rows, n_cols = self._heights.shape
+        if not (len(rows) == len(cols) == len(raise_m)):
+            msg = f"{len(rows)} rows, {len(cols)} columns and {len(raise_m)} raises differ"
+            raise ValueError(msg)
+        if rows.min() < 0 or rows.max() >= n_rows or cols.min() < 0 or cols.max() >= n_cols:
+            msg = (
+                f"cells rows {int(rows.min())}..{int(rows.max())}, columns {int(cols.min())}.."
+                f"{int(cols.max())} are not all within the {n_rows} x {n_cols} height map"
+            )
+            raise ValueError(msg)
+        if not (np.all(np.isfinite(raise_m)) and raise_m.min() >= 0.0):
+            bad = float(raise_m[~(np.isfinite(raise_m) & (raise_m >= 0.0))][0])
+            msg = f"a raise must be finite and >= 0 m, got {bad!r} m"
+            raise ValueError(msg)
+        np.add.at(self._heights, (rows, cols), raise_m)
+        self._changed_rows += [int(rows.min()), int(rows.max())]
+        self._changed_cols += [int(cols.min()), int(cols.max())]
+        self._height_bound = max(self._height_bound, float(self._heights.max()) + 1e-9)
 
     def commit(self) -> bool:
         """Bring the simulator's surface up to date with the cuts since the last commit.

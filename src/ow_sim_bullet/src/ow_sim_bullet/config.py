@@ -14,6 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from ow_description.description import ALL_JOINTS, EUROPA_GRAVITY, STOWED
+from ow_regolith.config import RegolithConfig
+from ow_regolith.errors import ConfigError as RegolithConfigError
 from ow_runtime.params import Params, suggest
 from ow_sim_bullet.errors import ConfigError
 
@@ -246,6 +248,9 @@ class SimConfig:
             it holds at t = 0 until each has registered (the mission's arm services).
         gains: PID gains by joint name.
         initial_positions: rad, joint positions at start-up and after a reset, by joint name.
+        regolith: the regolith the simulation follows (materials, the terrain's layer columns,
+            the scoop's and the dock's shapes, deposits; :class:`ow_regolith.config.
+            RegolithConfig`, docs/regolith.md).
     """
 
     physics_rate_hz: float = 100.0
@@ -283,6 +288,7 @@ class SimConfig:
     lockstep_clients: tuple[str, ...] = ()
     gains: Mapping[str, PidGains] = field(default_factory=_default_gains)
     initial_positions: Mapping[str, float] = field(default_factory=_default_initial)
+    regolith: RegolithConfig = field(default_factory=RegolithConfig)
 
     @property
     def dt(self) -> float:
@@ -322,6 +328,11 @@ class SimConfig:
         for joint in initial_section.values:
             if joint in ALL_JOINTS:
                 initial[joint] = initial_section.number(joint, initial[joint], unit="rad")
+        try:
+            regolith = RegolithConfig.from_dict(p.raw("regolith"), p.name("regolith"))
+        except RegolithConfigError as error:
+            p.problem(str(error))
+            regolith = d.regolith
         force_params = p.raw("terrain_force_params", {})
         if not isinstance(force_params, Mapping):
             p.problem(f"{p.name('terrain_force_params')} must be a mapping, got {force_params!r}")
@@ -368,6 +379,7 @@ class SimConfig:
             lockstep_clients=p.names("lockstep_clients", d.lockstep_clients),
             gains=gains,
             initial_positions=initial,
+            regolith=regolith,
         )
         if config.carve_full_force <= config.terrain_yield_force:
             p.problem(

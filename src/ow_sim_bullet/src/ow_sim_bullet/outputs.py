@@ -19,6 +19,7 @@ from tf2_msgs.msg import TFMessage
 
 from ow_msgs.msg import JointStatesFlag
 from ow_msgs.msg import ToolState as ToolStateMsg
+from ow_regolith.conversions import regolith_budget
 from ow_runtime.names import (
     ARM_END_EFFECTOR_FORCE_TORQUE,
     CLOCK,
@@ -86,7 +87,7 @@ class WirePublisher(Protocol):
 
 
 class MessagePublisher(Protocol):
-    """Publishes whole messages (the latched terrain)."""
+    """Publishes whole messages (the latched terrain, the regolith budget)."""
 
     def publish(self, msg: Any) -> None:
         """Publish ``msg``."""
@@ -106,6 +107,8 @@ class SimOutputs:
             each :meth:`flush` (the node sets its own ROS time), or None.
         on_dig_phase: called with the sim time (s) and the scoop's dig phase when it changes
             (and by :meth:`publish_dig_phase`), or None.
+        budget: publisher of the ``ow_msgs/RegolithBudget`` of the regolith, at each change
+            (a carve update or an ingestion changed an account; :meth:`publish_budget`), or None.
     """
 
     def __init__(
@@ -117,9 +120,13 @@ class SimOutputs:
         frames: Sequence[JointFrame],
         on_clock: Callable[[float], None] | None = None,
         on_dig_phase: Callable[[float, DigPhase], None] | None = None,
+        budget: MessagePublisher | None = None,
     ) -> None:
         self.sim = sim
         self._on_dig_phase = on_dig_phase
+        self._budget_pub = budget
+        #: the regolith's version last published (-1: none yet).
+        self._budget_version = -1
         #: the dig phase last told on_dig_phase.
         self._dig_phase = sim.dig_phase
         self._publishers = [publishers[topic] for topic, _ in WIRE_TOPICS]
@@ -210,6 +217,7 @@ class SimOutputs:
                         publisher.publish(serializers[tool], self.snapshots[tool])
         if sim.dig_phase is not self._dig_phase:
             self.publish_dig_phase()
+        self.publish_budget_if_changed()
         self.publish_terrain_if_due()
 
     def publish_dig_phase(self) -> None:
@@ -218,6 +226,28 @@ class SimOutputs:
         self._dig_phase = self.sim.dig_phase
         if self._on_dig_phase is not None:
             self._on_dig_phase(self.sim.time, self._dig_phase)
+
+    def publish_budget(self) -> None:
+        """Publish the regolith budget now (the node: at start, so that the latched topic holds
+        it from the beginning; then at each change, by :meth:`publish`)."""
+        regolith = self.sim.regolith
+        self._budget_version = regolith.version
+        if self._budget_pub is not None:
+            self._budget_pub.publish(
+                regolith_budget(
+                    regolith.snapshot(),
+                    regolith.database,
+                    regolith.column,
+                    conversions.stamp(self.sim.time),
+                )
+            )
+
+    def publish_budget_if_changed(self) -> None:
+        """Publish the regolith budget if it changed since its last publication: after each
+        step (it changes at carve updates only) and after a command that changed it (an
+        ingestion, also on a paused simulation)."""
+        if self.sim.regolith.version != self._budget_version:
+            self.publish_budget()
 
     def publish_standing(self, terrain: bool = True) -> None:
         """Where the simulation stops (paused, held by a lockstep client, after ``~step``):

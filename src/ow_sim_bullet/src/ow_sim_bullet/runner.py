@@ -282,16 +282,18 @@ class SimRunner:
 
         return self.call(take_steps, CALL_TIMEOUT_S + STEP_TIMEOUT_S * steps)
 
-    def replace_terrain(self, heightmap: HeightMap) -> None:
-        """Replace the terrain and publish it.
+    def replace_terrain(self, heightmap: HeightMap, terrain: str = "") -> None:
+        """Replace the terrain and publish it (and the regolith budget: the new terrain's layer
+        column may differ); ``terrain``, its specification, selects that column.
 
         Raises:
             SimError: the simulation thread did not answer.
         """
 
         def install() -> None:
-            self.sim.set_terrain(heightmap)
+            self.sim.set_terrain(heightmap, terrain)
             self.outputs.publish_terrain()
+            self.outputs.publish_budget_if_changed()
 
         self.call(install)
 

@@ -13,7 +13,9 @@ torques to pybullet:
   dig (the scoop's dig phase, the grinder grinding), the terrain-force model's wrenches and the
   contacts as joint torques, the tools' snapshots and the wrist F/T sensor;
 * :class:`~ow_sim_bullet.carving.TerrainCarver`: the height map and the carving under the tools
-  (only those that dig: elsewhere the terrain is solid).
+  (only those that dig: elsewhere the terrain is solid);
+* :class:`~ow_sim_bullet.regolith.SimRegolith`: the regolith the tools cut, the scoop holds,
+  spills and pours (deposits raise the height map), the dock, and their budget.
 
 Frames: the lander's ``base_link`` is fixed at the world origin, so world and base_link coincide.
 """
@@ -34,6 +36,7 @@ from ow_dem_bridge.models import make_model
 from ow_description.description import ARM_JOINTS, TERRAIN_CONTACT_LINKS, URDF_PATH
 from ow_description.terrain import HeightMap
 from ow_faults.injection import FaultSet
+from ow_regolith.errors import RegolithError
 from ow_sim_bullet.bullet_terrain import BulletTerrain
 from ow_sim_bullet.carving import TerrainCarver, collision_surface_points
 from ow_sim_bullet.config import PidGains, SimConfig
@@ -41,6 +44,7 @@ from ow_sim_bullet.errors import CommandError, ConfigError
 from ow_sim_bullet.faults import LOCK_DAMPER, JointLocks, WristFaults
 from ow_sim_bullet.joint_control import FloatArray, JointController
 from ow_sim_bullet.joints import ClippedSetpoint, JointSample
+from ow_sim_bullet.regolith import SimRegolith
 from ow_sim_bullet.tool_forces import ToolForces
 from ow_sim_bullet.tool_tracking import TOOLS, DigPhase, ToolSnapshot, ToolTracker
 from ow_sim_bullet.trajectory import JointTrajectory
@@ -108,7 +112,8 @@ class BulletSim:
         force_model: terrain-force model for tools below the surface, or None.
 
     Raises:
-        ConfigError: the URDF does not suit the simulation (joint friction, tool shapes).
+        ConfigError: the URDF does not suit the simulation (joint friction, tool shapes, the
+            regolith's scoop or dock).
     """
 
     def __init__(
@@ -166,6 +171,7 @@ class BulletSim:
             frames=(*self.link_index, "base_link"),
         )
         self._tool_links = tool_links
+        self.regolith, self._regolith_scoop = self._make_regolith(heightmap)
         joint_index = dict(zip(self.names, self._bullet_index, strict=True))
         self.locks = JointLocks(self.client, self.robot, joint_index)
         self.wrist_faults = WristFaults(config.noise_seed)
@@ -229,6 +235,19 @@ class BulletSim:
             physicsClientId=self.client,
         )
         return robot, link_index, bullet_index
+
+    def _make_regolith(self, heightmap: HeightMap) -> tuple[SimRegolith, int]:
+        """The regolith of the initial terrain and the Bullet link index of its scoop link."""
+        config = self.config.regolith
+        if config.scoop.link not in self.link_index:
+            msg = f"regolith/scoop/link {config.scoop.link!r} is not a link of the URDF"
+            raise ConfigError(msg)
+        try:
+            regolith = SimRegolith(config, heightmap, self.config.terrain)
+        except RegolithError as error:
+            msg = f"regolith: {error}"
+            raise ConfigError(msg) from error
+        return regolith, self.link_index[config.scoop.link]
 
     def _make_surface(self, heightmap: HeightMap) -> BulletTerrain:
         """The terrain as Bullet heightfields, colliding with the tools if ``tool_contact``."""
@@ -338,9 +357,12 @@ class BulletSim:
         self.wrist_faults.set(faults)
         return locked, released
 
-    def set_terrain(self, heightmap: HeightMap) -> None:
-        """Replace the terrain (the old one, with its trenches, is discarded)."""
+    def set_terrain(self, heightmap: HeightMap, terrain: str = "") -> None:
+        """Replace the terrain (the old one, with its trenches and loose regolith, is
+        discarded); ``terrain``, its specification, selects its regolith layer column (the
+        default column for "" or a kind without its own)."""
         self.carver.replace(heightmap)
+        self.regolith.set_terrain(heightmap, terrain)
 
     # ------------------------------------------------------------------ stepping
     def step(self) -> None:
@@ -385,9 +407,20 @@ class BulletSim:
             self._carve()
 
     def _carve(self) -> None:
-        """Lower the terrain under the tools that reach it (:meth:`TerrainCarver.cut`), as far
-        as it gives way to each (:meth:`ToolTracker.digs`)."""
-        carver, tracker = self.carver, self.tracker
+        """One carve update: the regolith follows the scoop (it collects in a dig, spills and
+        pours outside one; poured on the terrain it raises it), then the terrain is lowered under
+        the tools that reach it (:meth:`TerrainCarver.cut`), as far as it gives way to each
+        (:meth:`ToolTracker.digs`), each cut told to the regolith."""
+        carver, tracker, regolith = self.carver, self.tracker, self.regolith
+        digging = tracker.dig.phase.digging
+        if regolith.scoop_active(digging):  # else nothing to collect or spill: skip the pose
+            state = pb.getLinkState(self.robot, self._regolith_scoop, physicsClientId=self.client)
+            X_base_scoop = np.eye(4)
+            X_base_scoop[:3, :3] = np.asarray(pb.getMatrixFromQuaternion(state[5])).reshape(3, 3)
+            X_base_scoop[:3, 3] = state[4]
+            deposit = regolith.scoop_moved(X_base_scoop, digging)
+            if deposit:
+                carver.raise_cells(deposit.rows, deposit.cols, deposit.raise_m)
         for tool, link in self._tool_links.items():
             low, high = pb.getAABB(self.robot, link, physicsClientId=self.client)
             if not carver.reaches(low, high):
@@ -395,7 +428,9 @@ class BulletSim:
             state = pb.getLinkState(self.robot, link, physicsClientId=self.client)
             rotation = np.asarray(pb.getMatrixFromQuaternion(state[5])).reshape(3, 3)
             normal_force = self.forces.normal_force(tool)
-            carver.cut(tool, rotation, np.asarray(state[4]), normal_force, tracker.digs(tool))
+            cut = carver.cut(tool, rotation, np.asarray(state[4]), normal_force, tracker.digs(tool))
+            if cut is not None:
+                regolith.terrain_cut(tool, cut, digging)
         carver.commit()
 
     # ------------------------------------------------------------------ outputs

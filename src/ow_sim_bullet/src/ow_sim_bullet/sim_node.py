@@ -25,6 +25,7 @@ from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.errors import SimError
 from ow_sim_bullet.lockstep_node import LockstepServer
 from ow_sim_bullet.reconfigure_node import SimReconfigure
+from ow_sim_bullet.regolith_node import RegolithServer, budget_publisher
 from ow_sim_bullet.runner import SimRunner
 from ow_sim_bullet.sim_core import BulletSim, make_force_model
 from ow_sim_bullet.terrains import parse_terrain_spec
@@ -63,6 +64,8 @@ class SimNode:
             phase (OceanWATERS' topic and fields), NOT_DIGGING at start, then at each change;
             the terrain gives way to the scoop only while it digs.
         /flags/joint_states (ow_msgs/JointStatesFlag): locked joints, with /joint_states.
+    The regolith (/regolith/budget, /ground_truth/material_ingested, /sim/ingest_sample): see
+    :class:`~ow_sim_bullet.regolith_node.RegolithServer`.
     Faults (``/faults/parameter_updates``) and PID gains (dynamic_reconfigure): see
     :class:`~ow_sim_bullet.reconfigure_node.SimReconfigure`.
 
@@ -116,10 +119,18 @@ class SimNode:
         )
         on_clock = _set_rostime if own_clock is not None else None
         self.outputs = outputs.SimOutputs(
-            self.sim, config, publishers, terrain, frames, on_clock, self._publish_dig_phase
+            self.sim,
+            config,
+            publishers,
+            terrain,
+            frames,
+            on_clock,
+            self._publish_dig_phase,
+            budget_publisher(),
         )
         self.outputs.publish_terrain()
         self.outputs.publish_dig_phase()
+        self.outputs.publish_budget()
         rtf, paused = config.real_time_factor, config.start_paused
         self.runner = SimRunner(
             self.sim, self.outputs, rtf, paused, rospy.is_shutdown, rospy.logerr
@@ -132,6 +143,7 @@ class SimNode:
         rospy.Service("~set_terrain", SetTerrain, self._on_set_terrain)
         self.reconfigure = SimReconfigure(self.runner)  # faults, PID gains, ~set_pid_gains
         self.lockstep = LockstepServer(self.runner, config.lockstep_clients)
+        self.regolith = RegolithServer(self.runner, self.outputs)  # /sim/ingest_sample
         self._thread = threading.Thread(target=self._run, name="sim", daemon=True)
 
     def _parse_terrain(self, spec: str) -> HeightMap:
@@ -174,7 +186,7 @@ class SimNode:
 
     def _on_set_terrain(self, request: Any) -> SetTerrainResponse:
         try:
-            self.runner.replace_terrain(self._parse_terrain(request.terrain))
+            self.runner.replace_terrain(self._parse_terrain(request.terrain), request.terrain)
         except SimError as error:
             return SetTerrainResponse(success=False, message=str(error))
         return SetTerrainResponse(success=True, message=f"terrain is now {request.terrain}")

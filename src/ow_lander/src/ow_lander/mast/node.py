@@ -20,6 +20,7 @@ from ow_description.description import ANTENNA_JOINTS
 from ow_lander.errors import GoalError
 from ow_lander.fault_watch_node import FaultWatch
 from ow_lander.mast.comms_node import CommsServer
+from ow_lander.mast.dock_ingest_node import DockIngestServer
 from ow_lander.mast.pan_tilt import (
     PAN,
     TILT,
@@ -100,6 +101,8 @@ class PanTiltNode:
             PREEMPTED "Action was preempted"; feedback and result pan_position (tilt_position)
             rad, feedback at each check. Busy and fault refusals as above.
         ActivateComms: :class:`~ow_lander.mast.comms_node.CommsServer`.
+        DockIngestSample: :class:`~ow_lander.mast.dock_ingest_node.DockIngestServer` (calls the
+            simulation's /sim/ingest_sample).
 
     Subscriptions:
         /joint_states (sensor_msgs/JointState): the mast's joints (and the arm's for frame 1), by
@@ -143,11 +146,12 @@ class PanTiltNode:
             server.start()
             self.single_servers[name] = (server, StampedFeedback(server.action_server, 0.0))
         self.comms = CommsServer()
+        self.dock_ingest = DockIngestServer()
         # One status timer that outlives a clock set back (actionlib's own ends its thread).
         self._status_timer = share_status_timer(
             [self.joints_server.action_server, self.cartesian_server.action_server]
             + [s.action_server for s, _ in self.single_servers.values()]
-            + [self.comms.server.action_server]
+            + [self.comms.server.action_server, self.dock_ingest.server.action_server]
         )
 
     def _on_joint_state(self, msg: JointState) -> None:
@@ -409,5 +413,8 @@ def main() -> None:
     """Entry point of ``rosrun ow_lander pan_tilt``."""
     init_node("pan_tilt")
     PanTiltNode()
-    rospy.loginfo("pan_tilt: PanTiltMoveJoints, PanTiltMoveCartesian, Pan, Tilt, ActivateComms")
+    rospy.loginfo(
+        "pan_tilt: PanTiltMoveJoints, PanTiltMoveCartesian, Pan, Tilt, ActivateComms, "
+        "DockIngestSample"
+    )
     spin()

@@ -1,0 +1,87 @@
+"""ROS wiring of the simulation's regolith (:mod:`ow_sim_bullet.regolith`, docs/regolith.md):
+the budget's publisher, the ingestion service and its ground truth."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import rospy
+
+from ow_materials.msg import BulkExcavation
+from ow_msgs.msg import RegolithBudget
+from ow_msgs.srv import IngestSample, IngestSampleResponse
+from ow_regolith.conversions import bulk_excavation
+from ow_regolith.materials import Bulk
+from ow_runtime.names import MATERIAL_INGESTED, REGOLITH_BUDGET, SIM_INGEST_SAMPLE
+from ow_sim_bullet import conversions
+from ow_sim_bullet.errors import SimError
+from ow_sim_bullet.outputs import SimOutputs
+from ow_sim_bullet.runner import SimRunner
+
+#: The ingestion service's answer when the dock held nothing (OceanWATERS' DockIngestSample
+#: text).
+NO_SAMPLE = "No sample was present in dock"
+
+#: Ingestions whose ground truth a slow subscriber may lag behind by (one message each).
+_INGESTED_QUEUE = 10
+
+
+class RegolithServer:
+    """The regolith topics and service of the ``sim`` node.
+
+    Publications:
+        /regolith/budget (ow_msgs/RegolithBudget, latched): the six accounts (m^3, exactly in
+            um^3, kg) by layer and material, from the start and at each change (at most once per
+            carve update, and after an ingestion or a new terrain); stamp = sim time.
+        /ground_truth/material_ingested (ow_materials/BulkExcavation, latched): OceanWATERS'
+            ground truth of what one ingestion took from the dock: volume m^3 and composition by
+            material; one message per ingestion that took something, stamp = its sim time.
+
+    Services:
+        /sim/ingest_sample (ow_msgs/IngestSample): ingest what lies in the sample dock (the
+            budget's ``in_dock`` moves to ``ingested``): success with ``sample_ingested`` and
+            ``volume`` m^3, or "No sample was present in dock" (``sample_ingested`` false);
+            ``success`` false only when the simulation thread does not answer. ow_lander's
+            DockIngestSample action calls it.
+
+    Parameters: ``~regolith`` (:class:`ow_regolith.config.RegolithConfig`, docs/regolith.md).
+
+    Args:
+        runner: the simulation thread (the ingestion runs on it).
+        outputs: the outputs, which publish the budget on :func:`budget_publisher`'s publisher.
+    """
+
+    def __init__(self, runner: SimRunner, outputs: SimOutputs) -> None:
+        self._runner = runner
+        self._outputs = outputs
+        self._ingested = rospy.Publisher(
+            MATERIAL_INGESTED, BulkExcavation, queue_size=_INGESTED_QUEUE, latch=True
+        )
+        rospy.Service(SIM_INGEST_SAMPLE, IngestSample, self._on_ingest)
+
+    def _ingest(self) -> tuple[float, Bulk]:
+        """On the simulation thread: ingest the dock's content, publish the budget."""
+        sim = self._runner.sim
+        bulk = sim.regolith.ingest()
+        self._outputs.publish_budget_if_changed()
+        return sim.time, bulk
+
+    def _on_ingest(self, _: Any) -> IngestSampleResponse:
+        try:
+            sim_time, bulk = self._runner.call(self._ingest)
+        except SimError as error:
+            return IngestSampleResponse(False, f"cannot ingest: {error}", False, 0.0)
+        if bulk.is_empty:
+            return IngestSampleResponse(True, NO_SAMPLE, False, 0.0)
+        database = self._runner.sim.regolith.database
+        self._ingested.publish(bulk_excavation(bulk, database, conversions.stamp(sim_time)))
+        shares = ", ".join(
+            f"{name} {float(share):.1%}" for name, share in bulk.composition().items()
+        )
+        text = f"ingested {bulk.volume_m3:.3g} m^3 ({bulk.mass_kg(database):.3g} kg: {shares})"
+        return IngestSampleResponse(True, text, True, bulk.volume_m3)
+
+
+def budget_publisher() -> rospy.Publisher:
+    """The latched publisher of ``/regolith/budget`` (state: a slow subscriber gets the newest)."""
+    return rospy.Publisher(REGOLITH_BUDGET, RegolithBudget, queue_size=1, latch=True)
