@@ -26,7 +26,12 @@ from ow_cameras import protocol
 from ow_description.description import DEFAULT_GROUND_Z
 from ow_faults.protocol import APPLIED_TOPIC
 from ow_msgs.msg import FaultChangeApplied
-from ow_runtime.names import CAMERA_FAULTS_STATUS, SYSTEM_FAULTS_STATUS
+from ow_runtime.names import (
+    CAMERA_FAULTS_STATUS,
+    STEREO_LEFT_IMAGE_RAW,
+    STEREO_LEFT_TRIGGER,
+    SYSTEM_FAULTS_STATUS,
+)
 from owl_msgs.msg import (
     CameraCaptureAction,
     CameraCaptureGoal,
@@ -73,7 +78,6 @@ class Messages:
 @pytest.fixture(scope="module")
 def stack(ros_stack):
     ros_stack.start_node("ow_faults", "faults", wait_for_services=["/faults/set_parameters"])
-    ros_stack.start_node("ow_faults", "detector", wait_for_topics=[CAMERA_FAULTS_STATUS])
     ros_stack.start_node(
         "ow_sim_bullet",
         "sim",
@@ -88,6 +92,15 @@ def stack(ros_stack):
     ros_stack.start_node(
         "ow_cameras", "camera", wait_for_topics=[f"/{protocol.CAMERA_CAPTURE}/status"]
     )
+    # The detector last: its subscriptions find the camera's publishers when it registers them
+    # (a publisher registered later reaches a subscriber only through the master's update, which
+    # a loaded CI once missed for good); then until it is connected to all three.
+    ros_stack.start_node("ow_faults", "detector", wait_for_topics=[CAMERA_FAULTS_STATUS])
+    watched = [f"/{protocol.CAMERA_CAPTURE}/status", STEREO_LEFT_TRIGGER, STEREO_LEFT_IMAGE_RAW]
+    deadline = time.monotonic() + 30.0
+    while ros_stack.master.unconnected(watched):
+        assert time.monotonic() < deadline, f"unconnected: {ros_stack.master.unconnected(watched)}"
+        time.sleep(0.01)
     ros_stack.faults = Client("/faults", timeout=30)
     ros_stack.applied = Messages(APPLIED_TOPIC, FaultChangeApplied)
     ros_stack.camera = Messages(CAMERA_FAULTS_STATUS, CameraFaultsStatus)
