@@ -16,7 +16,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from ow_lander.operations.workspace import GRIND_PASS_SHIFT, shoulder_yaw_for
+from ow_lander.operations.workspace import GRIND_PASS_SHIFT, grind_axes, shoulder_yaw_for
 from ow_mission.errors import ConfigError
 
 #: N and N m, ArmFindSurface's thresholds (the force ground detector's 10 N rise).
@@ -41,15 +41,11 @@ def _linear_middle(x: float, y: float, length: float) -> tuple[float, float]:
 
 def _grind_centre(x: float, y: float, length: float, parallel: bool) -> tuple[float, float]:
     """The centre between the two passes of a grind whose first pass starts at (x, y) m:
-    TaskGrind takes the centre, the service the start. The second pass lies to the left of a
-    radial first pass, further out for one across the arm (the heading is aimed at the centre,
-    so iterate)."""
+    TaskGrind takes the centre, the service the start (the heading is aimed at the centre, so
+    iterate)."""
     cx, cy = x, y
     for _ in range(8):
-        yaw = shoulder_yaw_for(cx, cy, -math.pi, math.pi)
-        heading = (math.cos(yaw), math.sin(yaw))
-        right = (math.sin(yaw), -math.cos(yaw))
-        along, shift = (heading, (-right[0], -right[1])) if parallel else (right, heading)
+        along, shift = grind_axes(shoulder_yaw_for(cx, cy, -math.pi, math.pi), parallel)
         cx = x + along[0] * length / 2 + shift[0] * GRIND_PASS_SHIFT / 2
         cy = y + along[1] * length / 2 + shift[1] * GRIND_PASS_SHIFT / 2
     return cx, cy

@@ -42,7 +42,7 @@ from ow_lander.errors import PlanningError
 from ow_lander.operations.motions import ArmMotions, align, line, rz
 from ow_lander.operations.operation_plan import OperationPlan, check_finite
 from ow_lander.operations.registry import OPERATIONS
-from ow_lander.operations.workspace import GRIND_PASS_SHIFT
+from ow_lander.operations.workspace import GRIND_PASS_SHIFT, grind_axes
 from ow_lander.planning.validity import CheckContext
 
 FloatArray = npt.NDArray[np.float64]
@@ -167,12 +167,9 @@ def plan_grind(
         _length(p["length"])
     x, y, ground = float(p["x"]), float(p["y"]), float(p["ground_position"])
     yaw = m.yaw(x, y)
-    heading = np.array([math.cos(yaw), math.sin(yaw), 0.0])
-    right = np.array([math.sin(yaw), -math.cos(yaw), 0.0])
-    direction = heading if p["parallel"] else right
-    # The second pass is beside the first: to the left of a radial trench, further out from
-    # the lander for a trench across the arm.
-    shift = -right if p["parallel"] else heading
+    along, beside = grind_axes(yaw, bool(p["parallel"]))
+    direction = np.array([*along, 0.0])
+    shift = np.array([*beside, 0.0])
     length = float(p["length"])
     first = np.array([x, y, ground - float(p["depth"])])
     if centred:

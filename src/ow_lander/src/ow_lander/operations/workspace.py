@@ -17,6 +17,16 @@ ARM_PLANE_OFFSET = 0.15
 GRIND_PASS_SHIFT = 0.08
 
 
+def grind_axes(yaw: float, parallel: bool) -> tuple[tuple[float, float], tuple[float, float]]:
+    """(along, shift): unit (x, y) directions of a grind's passes and of the step from the first
+    pass to the second, for the shoulder yaw ``yaw`` rad at the trench. A radial trench
+    (``parallel``) runs along the heading with the second pass to its left; one across the arm
+    runs to the right of the heading with the second pass further out from the lander."""
+    heading = (math.cos(yaw), math.sin(yaw))
+    right = (math.sin(yaw), -math.cos(yaw))
+    return (heading, (-right[0], -right[1])) if parallel else (right, heading)
+
+
 def shoulder_yaw_for(x: float, y: float, lower: float, upper: float) -> float:
     """rad, shoulder yaw aiming the arm's working plane at (x, y) (OceanWATERS alpha + beta).
 
