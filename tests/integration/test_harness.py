@@ -221,6 +221,34 @@ def test_a_modules_publishers_end_with_it_and_a_later_one_gets_its_own_queue(ros
     unregister_endpoints()
 
 
+def test_a_fault_a_module_left_injected_is_not_injected_in_the_next(ros_master):
+    """The ``/faults`` server (dynamic_reconfigure) writes its configuration under ``/faults``
+    and the ``faults`` node reads its launch-time faults from there. A module's stack puts the
+    master's parameters back when it ends, so a fault a module left injected (a locked pan
+    joint: a later module's camera tests saw PAN_TILT_EXECUTION_ERROR beside their
+    CAMERA_GOAL_ERROR) is not injected from the start in the next; parameters that were there
+    before keep their values."""
+    from dynamic_reconfigure.client import Client
+
+    from ow_bringup.testing import module_stack
+
+    ros_master.set_param("/harness_kept", 1)
+    at_start = []
+    for leave_injected in (True, False):
+        with module_stack(ros_master) as stack:
+            stack.start_node("ow_faults", "faults", wait_for_services=["/faults/set_parameters"])
+            client = Client("/faults", timeout=30)
+            at_start.append(client.get_configuration(timeout=30)["ant_pan_joint_locked_failure"])
+            if leave_injected:
+                client.update_configuration({"ant_pan_joint_locked_failure": True})
+                ros_master.set_param("/harness_kept", 2)
+            client.close()
+    assert at_start == [False, False]
+    assert not ros_master.call("hasParam", "/faults")
+    assert ros_master.call("getParam", "/harness_kept") == 1
+    ros_master.delete_param("/harness_kept")
+
+
 IGNORING_SIGINT = """
 import signal, time
 signal.signal(signal.SIGINT, signal.SIG_IGN)

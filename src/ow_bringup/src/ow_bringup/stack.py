@@ -135,6 +135,35 @@ def _log_tail(path: Path, lines: int = 40) -> str:
         return "(no log)"
 
 
+def _namespaces(name: str) -> list[str]:
+    """The namespaces enclosing parameter ``name``, outermost first (``/a/b/c``: ``/a``,
+    ``/a/b``)."""
+    parts = name.split("/")
+    return ["/".join(parts[:k]) for k in range(2, len(parts))]
+
+
+def new_param_roots(kept: Iterable[str], names: Iterable[str]) -> list[str]:
+    """What to delete so that of parameters ``names`` only ``kept`` remain: for each name not
+    kept, its outermost namespace that encloses no kept name (a new ``/faults`` goes whole,
+    without the empty namespace deleting its parameters one by one would leave), else the name.
+
+    Args:
+        kept: full parameter names to keep (``/use_sim_time``), as ``getParamNames`` lists them.
+        names: full parameter names on the master now.
+
+    Returns:
+        Sorted full names of parameters and namespaces, none inside another.
+    """
+    kept = set(kept)
+    occupied = {ns for name in kept for ns in _namespaces(name)}
+    return sorted(
+        {
+            next((ns for ns in _namespaces(name) if ns not in occupied), name)
+            for name in set(names) - kept
+        }
+    )
+
+
 #: Master methods an in-process master answers without XML-RPC: read-only, and answered with
 #: lists made for the call (rosmaster's ``Registrations.get_state``), never its own state.
 _DIRECT_METHODS = frozenset({"getSystemState"})
@@ -261,6 +290,20 @@ class RosMaster:
         """Delete a parameter if it exists."""
         with contextlib.suppress(HarnessError):
             self.call("deleteParam", key)
+
+    def param_snapshot(self) -> dict[str, Any]:
+        """Every parameter on the master now: full name -> value."""
+        return {name: self.call("getParam", name) for name in self.call("getParamNames")}
+
+    def restore_params(self, snapshot: Mapping[str, Any]) -> None:
+        """Put the parameters back as :meth:`param_snapshot` found them: every parameter set
+        since is deleted (a new namespace whole, :func:`new_param_roots`), and one changed or
+        deleted since is set back."""
+        for root in new_param_roots(snapshot, self.call("getParamNames")):
+            self.delete_param(root)
+        for name, value in snapshot.items():
+            if not self.call("hasParam", name) or self.call("getParam", name) != value:
+                self.set_param(name, value)
 
     def services(self) -> set[str]:
         """Names of all services registered right now."""

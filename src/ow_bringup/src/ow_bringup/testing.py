@@ -25,8 +25,9 @@ Fixtures:
         this test process initialised as a rospy node on it. One per pytest process, so files run
         in parallel under pytest-xdist without sharing a master.
     ros_stack (module): a :class:`RosStack` on that master; every node it started is stopped
-        (SIGINT, then SIGKILL of its whole process group) when the module ends, and the private
-        parameters it set are deleted.
+        (SIGINT, then SIGKILL of its whole process group) when the module ends, and the
+        master's parameters are put back as the module found them (:func:`module_stack`), so
+        that nothing a module's nodes wrote (the faults it left injected) reaches the next.
     start_lander (module): a function starting the simulation (as fast as it runs, on flat
         ground at the default height unless told otherwise) and the arm services (plan and
         execute) on ``ros_stack``; keyword arguments give each node more parameters.
@@ -43,6 +44,7 @@ services raises :class:`HarnessError` with the end of that log.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -71,6 +73,7 @@ __all__ = [
     "RosMaster",
     "RosStack",
     "advertise",
+    "module_stack",
     "ros_master",
     "ros_stack",
     "set_terrain",
@@ -98,15 +101,36 @@ def ros_master(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RosMaster]:
             leave_as_test_node()
 
 
-@pytest.fixture(scope="module")
-def ros_stack(ros_master: RosMaster) -> Iterator[RosStack]:
-    """Nodes for one test module, all stopped when the module ends."""
-    stack = RosStack(ros_master)
+@contextlib.contextmanager
+def module_stack(master: RosMaster) -> Iterator[RosStack]:
+    """A :class:`RosStack` on ``master`` for one test module (what :func:`ros_stack` yields).
+
+    On leaving, every node it started is stopped, the subscribers and publishers the test made
+    with :func:`subscribe`, :func:`advertise` and :func:`tf_buffer` are unregistered, and the
+    master's parameters are put back as they were on entering
+    (:meth:`~ow_bringup.stack.RosMaster.restore_params`). Nodes write parameters of their
+    own: the ``/faults`` server (dynamic_reconfigure) writes its whole configuration under
+    ``/faults`` at start and at every change, and the ``faults`` node reads its launch-time
+    faults from there. A fault a module left injected (``ant_pan_joint_locked_failure`` of
+    test_monitors_faults) was injected from the start in the next module on that master:
+    the camera tests' pan lock set PAN_TILT_EXECUTION_ERROR beside their CAMERA_GOAL_ERROR.
+    """
+    params = master.param_snapshot()
+    stack = RosStack(master)
     try:
         yield stack
     finally:
         stack.shutdown()
         unregister_endpoints()
+        master.restore_params(params)
+
+
+@pytest.fixture(scope="module")
+def ros_stack(ros_master: RosMaster) -> Iterator[RosStack]:
+    """Nodes for one test module, all stopped when the module ends, and the master's
+    parameters as the module found them (:func:`module_stack`)."""
+    with module_stack(ros_master) as stack:
+        yield stack
 
 
 #: sim s per wall s of the simulation :func:`start_lander` starts. Not as fast as it can: a
