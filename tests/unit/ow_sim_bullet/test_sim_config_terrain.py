@@ -62,6 +62,7 @@ def test_the_shipped_yaml_files_load_as_the_launch_file_loads_them():
         ({"terrain": ""}, "sim/terrain must be a non-empty string"),
         ({"terrain_material": 300}, "sim/terrain_material = 300 is outside [0, 255]"),
         ({"terrain_material": 1.5}, "sim/terrain_material must be an integer, got 1.5"),
+        ({"terrain_friction": -0.1}, "sim/terrain_friction = -0.1 is outside [0, inf]"),
         (
             {"terrain_file_center": [1.0]},
             "sim/terrain_file_center must be a list of two numbers (m), got [1.0]",

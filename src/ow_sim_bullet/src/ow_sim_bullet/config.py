@@ -205,6 +205,8 @@ class SimConfig:
         terrain_file_center: (x, y) m in base_link of the centre of a ``.npy`` or PNG file's grid.
         terrain_png_height_range: (z at pixel 0, z at pixel 65535) m for 16-bit PNG files.
         terrain_material: material id reported to terrain-force models.
+        terrain_friction: Coulomb friction coefficient between the tools and the terrain
+            (OceanWATERS' terrain models: 0.8).
         terrain_yield_force: N, total normal contact force above which a digging tool carves the
             terrain (outside a dig the terrain is solid).
         carve_step: m, how far below the tool a yielding cell is lowered in one carve update when
@@ -264,6 +266,7 @@ class SimConfig:
     terrain_file_center: tuple[float, float] = (1.5, 0.0)
     terrain_png_height_range: tuple[float, float] = (-1.0, 1.0)
     terrain_material: int = 1
+    terrain_friction: float = 0.8
     terrain_yield_force: float = 10.0
     carve_step: float = 0.003
     carve_full_force: float = 40.0
@@ -353,6 +356,7 @@ class SimConfig:
                 p, "terrain_png_height_range", d.terrain_png_height_range, "m"
             ),
             terrain_material=p.integer("terrain_material", d.terrain_material, low=0, high=255),
+            terrain_friction=p.non_negative("terrain_friction", d.terrain_friction),
             terrain_yield_force=p.non_negative("terrain_yield_force", d.terrain_yield_force, "N"),
             carve_step=p.non_negative("carve_step", d.carve_step, "m"),
             carve_full_force=p.non_negative("carve_full_force", d.carve_full_force, "N"),

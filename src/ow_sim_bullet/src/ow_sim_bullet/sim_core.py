@@ -54,9 +54,9 @@ from ow_sim_bullet.urdf import physical_inertias, read_urdf_joints
 _TOOL_GROUP = 1
 _TERRAIN_GROUP = 2
 _OTHER_GROUP = 4
-#: Coulomb friction coefficient of the tools and of the terrain (Bullet multiplies them: 0.5).
+#: Coulomb friction coefficient of the tools. Bullet multiplies the two bodies' coefficients, so
+#: the tool-terrain pair's is the terrain's, ``terrain_friction``.
 _TOOL_FRICTION = 1.0
-_TERRAIN_FRICTION = 0.5
 #: m, Bullet's contact breaking threshold (default 0.02): how far apart a tool and the terrain
 #: still get (speculative) contact points, and how far the tools' bounding boxes are grown for the
 #: heightfield triangle query. The tools move at most a few mm per step (joint speed limits
@@ -257,7 +257,10 @@ class BulletSim:
         terrain = BulletTerrain(self.client, heightmap, _TERRAIN_GROUP, mask)
         for body in terrain.body_ids:
             pb.changeDynamics(
-                body, -1, lateralFriction=_TERRAIN_FRICTION, physicsClientId=self.client
+                body,
+                -1,
+                lateralFriction=self.config.terrain_friction,
+                physicsClientId=self.client,
             )
         return terrain
 
@@ -462,7 +465,8 @@ class BulletSim:
         return self.tracker.snapshot(tool, self.sample, self.time, self.force_model is None)
 
     def wrist_wrench(self) -> tuple[FloatArray, FloatArray]:
-        """The wrist force/torque sensor at ``j_dist_pitch``, tared: force N and torque N m
+        """The wrist force/torque sensor at ``j_dist_pitch``, compensated for the weight and
+        inertia of the links beyond it (the external wrench on them): force N and torque N m
         about the joint, in ``l_dist`` (:meth:`ToolTracker.wrist_wrench`), with the injected
         sensor faults (:class:`~ow_sim_bullet.faults.WristFaults`)."""
         force, torque = self.tracker.wrist_wrench(self.sample)

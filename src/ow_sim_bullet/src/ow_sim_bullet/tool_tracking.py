@@ -558,10 +558,12 @@ class ToolTracker:
         )
 
     def wrist_wrench(self, sample: JointSample) -> tuple[FloatArray, FloatArray]:
-        """The force/torque sensor at ``j_dist_pitch`` (later OceanWATERS), tared: the external
-        wrench on everything beyond the joint (the tools' last snapshots), force N and torque
-        N m about the joint's origin, in the ``l_dist`` frame, at ``sample``. Gravity and
-        inertia of the distal links are not in it (as a sensor zeroed at rest)."""
+        """The force/torque sensor at ``j_dist_pitch`` (later OceanWATERS), compensated for the
+        weight and inertia of the links beyond the joint: the external wrench on them (the
+        tools' means at their last snapshots: contacts and terrain-force model), force N and
+        torque N m about the joint's origin, in the ``l_dist`` frame, at ``sample``. It is the
+        joint's reaction wrench less the distal links' weight and ``m a`` (Newton-Euler; checked
+        in ``test_wrist_sensor.py``): zero in the air, whatever the pose and motion."""
         total = self.forces.total_mean()
         if total is None:
             return np.zeros(3), np.zeros(3)
