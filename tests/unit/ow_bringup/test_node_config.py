@@ -144,10 +144,11 @@ def test_the_mission_runs_the_monitors_as_components_of_one_node(tmp_path):
     monitors = processes[-1]
     assert monitors.package == "ow_bringup"
     # Each component's parameters in the node's namespace of its name (the detector has none);
-    # the fault server asked for.
+    # the fault server and DockIngestSample asked for.
     assert monitors.params == {
         **{c: params[c] for c in ("power", "battery", "telemetry", "viz", "faults")},
         "serve_faults": True,
+        "serve_dock_ingest": True,
     }
     assert monitors.params["telemetry"]["rate_hz"] == 0
     assert set(monitors.services) == {"/faults/set_parameters"}
@@ -158,6 +159,7 @@ def test_the_mission_runs_the_monitors_as_components_of_one_node(tmp_path):
         "/arm_joint_positions",
         "/system_faults_status",
         "/faults/parameter_updates",
+        "/DockIngestSample/status",
     }
     assert "/arm/dig_circular" in processes[2].services
     assert "/arm/dig_linear" not in processes[2].services

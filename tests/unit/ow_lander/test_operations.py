@@ -151,6 +151,33 @@ def test_dig_linear_cuts_at_depth_for_length(ops, terrain):
     assert _tips(ops, q, plan.segments[-1].waypoints[-1:], "l_scoop_tip")[0, 2] > GROUND
 
 
+def _tilts_deg(ops, q, path):
+    """deg, the angle between the scoop tip frame's z and straight down at each of ``path``:
+    0 with the scoop level, its bottom down and its mouth up."""
+    z = [ops.model.fk(ops.planner.full(a, q), "l_scoop_tip")[:3, 2] for a in path]
+    return np.degrees(np.arccos(np.clip(-np.array(z)[:, 2], -1.0, 1.0)))
+
+
+@pytest.mark.parametrize(("depth", "length"), [(0.05, 0.2), (0.03, 0.15), (0.1, 0.3), (0.05, 0.04)])
+def test_dig_linear_curls_the_scoop_level_before_it_lifts_out(ops, terrain, depth, length):
+    """The cut ends with the scoop curled level, its tip at the cut's depth, and the scoop lifts
+    out and retracts level: it leaves the trench with what it cut (at its cutting attitude, its
+    lip ~32 degrees from level, half a full scoop spilled as the dig ended)."""
+    q = _q(ops.model, UNSTOWED)
+    request = dict(x=1.6, y=0.0, depth=depth, length=length, ground_position=GROUND)
+    plan = ops.plan_dig_linear(q, terrain, request)
+    segments = {s.label: s.waypoints for s in plan.segments}
+    cut = segments["cut"]
+    assert _tilts_deg(ops, q, cut[:1])[0] > 10.0  # it cuts pitched into the ground
+    assert np.allclose(_tilts_deg(ops, q, cut[-1:]), 0.0, atol=0.5)
+    assert np.allclose(_tips(ops, q, cut, "l_scoop_tip")[:, 2], GROUND - depth, atol=0.01)
+    out = np.vstack([segments["lift_out"], segments["retract"]])
+    dense = np.linspace(out[0], out[-1], 50) if len(out) == 2 else out
+    assert np.all(_tilts_deg(ops, q, dense) < 1.0)
+    # The curl turns the scoop a little at a time: no joint jumps between waypoints.
+    assert np.max(np.abs(np.diff(cut, axis=0))) <= PlannerConfig().max_joint_jump_rad + 1e-9
+
+
 @pytest.mark.parametrize("parallel", [True, False])
 def test_dig_circular_sweeps_120_degrees_to_depth(ops, terrain, parallel):
     q = _q(ops.model, UNSTOWED)
@@ -306,11 +333,12 @@ def test_no_escape_from_a_valid_start(ops, terrain):
 
 
 def _cut_state(ops, terrain):
-    """Halfway along a 0.1 m deep linear dig's cut (where a cancelled dig leaves the arm)."""
+    """The end of a 0.1 m deep linear dig's cut, the scoop curled level (where a dig cancelled
+    before its lift leaves the arm: the hand in the trench, below the ground beside it)."""
     q = _q(ops.model, UNSTOWED)
     request = dict(x=1.65, y=0.0, depth=0.1, length=0.3, ground_position=GROUND)
     cut = next(s for s in ops.plan_dig_linear(q, terrain, request).segments if s.label == "cut")
-    return ops.planner.full(cut.waypoints[len(cut.waypoints) // 2], q)
+    return ops.planner.full(cut.waypoints[-1], q)
 
 
 def _deepest_sweep_state(ops, terrain):
@@ -352,7 +380,7 @@ def test_a_start_in_the_terrain_is_left_by_a_lift_first(
     ground = GROUND if hand_depth is None else _hand_bottom(ops, q) + hand_depth
     buried = HeightMap.flat(ground)
     _, hand_below = ops.model.collision.terrain_contact(q, buried, ("l_hand",))
-    assert hand_below > 0.0  # the dig's cut: the hand is a few mm below the ground beside it
+    assert hand_below > 0.0  # the dig's cut: the hand is below the ground beside it
     here = ops.model.fk(q, "l_scoop_tip")
     requests = {
         "move_joints": {"angles": [UNSTOWED[j] for j in ARM_JOINTS]},

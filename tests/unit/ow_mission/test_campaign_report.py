@@ -50,6 +50,9 @@ def records():
         "steps": [step("dig", 99.0, [2.0, 2.0, 2.0]), step("stow", 50.0, None, success=False)],
     }
     out[3]["steps"][0]["success"] = True
+    # The runs' sample sections: two ingested a sample, one delivered nothing, one has none.
+    for k, volume, top in ((0, 4.0e-4, 0.5), (1, 6.0e-4, 0.25), (3, 0.0, None)):
+        out[k]["sample"] = {"ingested": volume > 0, "volume_m3": volume, "top_layer_share": top}
     return out
 
 
@@ -99,6 +102,13 @@ def test_campaign_summary_by_hand():
     assert ground["n"] == 2
     assert ground["mean"] == pytest.approx(0.002)
     assert ground["std"] == pytest.approx(math.sqrt(2) * 0.001)
+    # Delivered volume over the three missions with a sample section, the top layer's share
+    # over the two that ingested one.
+    volume = summary["delivered_volume_m3"]
+    assert (volume["n"], volume["values"]) == (3, [4.0e-4, 6.0e-4, 0.0])
+    assert volume["mean"] == pytest.approx(1.0e-3 / 3)
+    assert summary["top_layer_share"]["values"] == [0.5, 0.25]
+    assert summary["missions_with_sample"] == 2
     assert summary["failed"] == [
         {
             "index": 3,
@@ -119,6 +129,10 @@ def test_report_files(tmp_path):
     assert "| dig | 4 |" in text
     assert "| 3 | 103 | stow | step stow (/arm/stow) failed: no plan | " in text
     assert "`rosrun ow_mission mission /c/missions/003/mission.yaml`" in text
+    assert "2 of 3 missions ingested a sample. Volume ingested from the dock: mean 0.000333 m³" in (
+        text
+    )
+    assert "Share of it from the top layer, n = 2: mean 37.5 %, range [25.0, 50.0] %." in text
     assert summary["figures"] == [
         "plots/durations.png",
         "plots/energies.png",
@@ -128,3 +142,5 @@ def test_report_files(tmp_path):
         assert (tmp_path / figure).stat().st_size > 1000
     empty = write_campaign_report(tmp_path / "empty", config, {})
     assert empty["missions_done"] == 0
+    assert empty["delivered_volume_m3"] == {"n": 0, "values": []}
+    assert "No mission's report has a sample section." in (tmp_path / "empty/report.md").read_text()

@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 
 from ow_mission.errors import ConfigError
-from ow_mission.mission import STEPS, MissionReport, StepResult
+from ow_mission.mission import STEPS, Ingestion, MissionReport, StepResult, mission_steps
 from ow_mission.mission_config import DEFAULT_MISSION_FILE, MissionConfig, config_from_argv
 
 
@@ -23,9 +23,9 @@ def test_the_shipped_mission_file_is_valid_and_complete():
 @pytest.mark.parametrize(
     ("raw", "match"),
     [
-        ({"trench_depth": -0.1}, r"mission/trench_depth = -0.1 m is outside \[0.001, 0.1\] m"),
+        ({"trench_depth": -0.1}, r"mission/trench_depth = -0.1 m is outside \[0, 0.1\] m"),
         # the scoop digs the trench out: the dig services' limit holds, not the grinder's
-        ({"trench_depth": 0.12}, r"mission/trench_depth = 0.12 m is outside \[0.001, 0.1\] m"),
+        ({"trench_depth": 0.12}, r"mission/trench_depth = 0.12 m is outside \[0, 0.1\] m"),
         ({"trench_length": 1.5}, r"mission/trench_length = 1.5 m is outside \[0.01, 1\] m"),
         ({"x": float("nan")}, "mission/x must be finite"),
         ({"x": "far"}, "mission/x must be a number"),
@@ -81,6 +81,67 @@ def test_the_ground_found_feeds_the_later_steps():
     assert requests["discard_spoil"] == {"x": 1.3, "y": 0.9, "z": 0.4}
     assert requests["deliver_sample"] == {"use_defaults": True}
     assert requests["guarded_move"]["z"] == pytest.approx(config.expected_ground + 0.25)
+
+
+def test_a_mission_without_a_first_trench_samples_the_surface():
+    """trench_depth 0: no first grind, spoil dig or discard; the bottom grind and the sample's
+    dig start at the ground found (the top layer the paper's first trench would remove)."""
+    config = MissionConfig(trench_depth=0.0, bottom_grind_depth=0.05)
+    steps = mission_steps(config)
+    assert [s.name for s in steps] == [
+        "unstow", "guarded_move", "grind_bottom", "dig_sample", "deliver_sample", "stow",
+    ]  # fmt: skip
+    requests = {s.name: s.request(config, -0.2) for s in steps}
+    assert requests["grind_bottom"]["ground_position"] == pytest.approx(-0.2)
+    assert requests["dig_sample"]["ground_position"] == pytest.approx(-0.2)
+    assert mission_steps(MissionConfig()) == STEPS
+
+
+def _all_steps_ok(config: MissionConfig, tmp_path: Path) -> MissionReport:
+    report = MissionReport(config, tmp_path)
+    for step in mission_steps(config):
+        report.steps.append(StepResult(step.name, step.service, {}, success=True))
+    return report
+
+
+def test_a_mission_succeeds_only_with_a_sample_ingested(tmp_path: Path):
+    report = _all_steps_ok(MissionConfig(), tmp_path)
+    assert not report.success  # the ingestion was not tried
+    report.ingestion = Ingestion(True, True, "Sample ingested", 120.0, 0.1)
+    assert report.success
+    assert "sample: ingested (DockIngestSample: Sample ingested)" in report.table()
+    assert report.to_json()["ingestion"] == {
+        "sample_ingested": True,
+        "succeeded": True,
+        "message": "Sample ingested",
+        "sim_time_s": 120.0,
+        "wall_time_s": 0.1,
+    }
+    surface = _all_steps_ok(MissionConfig(trench_depth=0.0), tmp_path)
+    surface.ingestion = Ingestion(True, True, "Sample ingested")
+    assert surface.success
+
+
+@pytest.mark.parametrize(
+    ("ingestion", "reason"),
+    [
+        (
+            Ingestion(False, True, "No sample was present in dock"),
+            "DockIngestSample: No sample was present in dock: the delivery left no regolith in "
+            "the sample dock",
+        ),
+        (
+            Ingestion(False, False, "Removal service failed: /sim/ingest_sample did not answer"),
+            "DockIngestSample failed: Removal service failed: /sim/ingest_sample did not answer",
+        ),
+    ],
+)
+def test_a_mission_that_ingests_nothing_fails_saying_why(tmp_path, ingestion, reason):
+    report = _all_steps_ok(MissionConfig(), tmp_path)
+    report.ingestion = ingestion
+    assert ingestion.failure() == reason
+    assert not report.success
+    assert f"sample: none ingested: {reason}" in report.table()
 
 
 def test_report_table_says_what_failed(tmp_path: Path):

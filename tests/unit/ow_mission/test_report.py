@@ -426,7 +426,8 @@ def test_the_numbers_written_before_the_figures_are_the_reports(tmp_path):
     first = write_run_report(tmp_path, _document(), renders=False, draw=False)
     assert first["figures_pending"] is True
     assert first["figures"] == {}
-    assert list(first["figure_notes"]) == ["battery"]  # what the bags cannot show, as ever
+    # What the synthetic bags cannot show, as ever: no regolith budget, no battery.
+    assert list(first["figure_notes"]) == ["sample", "battery"]
     assert list(tmp_path.glob("*.png")) == []
     markdown = (tmp_path / "report.md").read_text()
     assert image_links(markdown) == []
@@ -856,3 +857,143 @@ def test_a_render_process_gives_its_free_heap_back():
     release_free_memory()
     assert rss_mb() < held - 50.0
     libc.free(blocks[-1])
+
+
+# ------------------------------------------------------------------ the delivered sample
+#: The budget of a run that scooped twice: m^3 by account, the ingested sample's by layer.
+LAYERS = ["irradiated", "pristine"]
+MATERIALS = ["ICE", "MG_HYDRATES", "SALT"]
+
+
+def _account(types, volume: float, by_layer: tuple[float, float]):
+    irradiated, pristine = by_layer
+    by_material = [0.85 * irradiated + pristine, 0.10 * irradiated, 0.05 * irradiated]
+    return types["ow_msgs/msg/RegolithAccount"](
+        volume=volume,
+        volume_um3=round(volume * 1e18),
+        mass=997.0 * by_material[0] + 2660.0 * by_material[1] + 2160.0 * by_material[2],
+        layer_volumes=np.array(by_layer),
+        material_volumes=np.array(by_material),
+    )
+
+
+def _put_budget(writer, messages, stamp_s, ingested: tuple[float, float]):
+    """One /regolith/budget: 1.3e-3 m^3 excavated, what is not ingested deposited."""
+    ns = round(stamp_s * 1e9)
+    types = messages.store.types
+    volume = sum(ingested)
+    excavated = 1.3e-3
+    accounts = {
+        "excavated": _account(types, excavated, (excavated - ingested[1], ingested[1])),
+        "in_scoop": _account(types, 0.0, (0.0, 0.0)),
+        "in_dock": _account(types, 0.0, (0.0, 0.0)),
+        "ingested": _account(types, volume, ingested),
+        "spilled": _account(types, 0.0, (0.0, 0.0)),
+        "deposited": _account(types, excavated - volume, (excavated - volume, 0.0)),
+    }
+    ros1_type, md5, msgdef, data = messages.serialize(
+        "ow_msgs/msg/RegolithBudget",
+        header=messages.header(ns),
+        layers=LAYERS,
+        top_layer=LAYERS[0],
+        materials=MATERIALS,
+        **accounts,
+    )
+    writer.write("/regolith/budget", ros1_type, md5, msgdef, ns, data, latching=True)
+
+
+def _put_ingested(writer, messages, stamp_s, volume: float, shares: list[float]):
+    from rosbags.typesys import get_types_from_msg
+
+    store = messages.store
+    if "ow_materials/msg/BulkExcavation" not in store.types:
+        root = Path(__file__).resolve().parents[3] / "src" / "ow_materials" / "msg"
+        for name in ("MaterialConcentration", "BulkExcavation"):
+            text = (root / f"{name}.msg").read_text()
+            store.register(get_types_from_msg(text, f"ow_materials/msg/{name}"))
+    types = store.types
+    ns = round(stamp_s * 1e9)
+    composition = [
+        types["ow_materials/msg/MaterialConcentration"](id=i, name=name, proportion=share)
+        for i, (name, share) in enumerate(zip(MATERIALS, shares, strict=True))
+    ]
+    ros1_type, md5, msgdef, data = messages.serialize(
+        "ow_materials/msg/BulkExcavation",
+        header=messages.header(ns),
+        volume=volume,
+        composition=composition,
+    )
+    writer.write("/ground_truth/material_ingested", ros1_type, md5, msgdef, ns, data)
+
+
+def _sample_run(directory: Path, ingested: tuple[float, float]) -> dict:
+    """A synthetic run whose last budget ingested ``ingested`` m^3 (irradiated, pristine)."""
+    writer = SplitBagWriter(directory / "bags", split_duration_s=4.0)
+    messages = BagMessages()
+    end = write_run(writer, SEGMENTS, JOINTS, start_s=START_S)
+    _put_budget(writer, messages, START_S, (0.0, 0.0))
+    _put_budget(writer, messages, end, ingested)
+    if sum(ingested) > 0:
+        irradiated, pristine = ingested
+        total = irradiated + pristine
+        shares = [(0.85 * irradiated + pristine) / total, 0.1 * irradiated / total]
+        _put_ingested(writer, messages, end, total, [*shares, 0.05 * irradiated / total])
+    writer.close()
+    document = _document()
+    document["ingestion"] = {
+        "sample_ingested": sum(ingested) > 0,
+        "succeeded": True,
+        "message": "Sample ingested" if sum(ingested) > 0 else "No sample was present in dock",
+        "sim_time_s": end,
+        "wall_time_s": 0.01,
+    }
+    return write_run_report(directory, document, renders=False, draw=False)
+
+
+def test_the_report_gives_the_ingested_samples_volume_composition_and_top_layer_share(tmp_path):
+    document = _sample_run(tmp_path, (2.0e-4, 6.0e-4))
+    sample = document["sample"]
+    assert sample["ingested"] is True
+    assert sample["volume_m3"] == pytest.approx(8.0e-4)
+    assert sample["top_layer"] == "irradiated"
+    # the share of the volume from the top layer: layer_volumes[top] / volume
+    assert sample["top_layer_share"] == pytest.approx(0.25)
+    assert sample["layers"] == pytest.approx({"irradiated": 0.25, "pristine": 0.75})
+    assert sample["composition"] == pytest.approx(
+        {"ICE": (0.85 * 2e-4 + 6e-4) / 8e-4, "MG_HYDRATES": 0.025, "SALT": 0.0125}
+    )
+    assert sum(sample["composition"].values()) == pytest.approx(1.0)
+    assert sample["budget_m3"]["excavated"] == pytest.approx(1.3e-3)
+    assert sample["dock_share"] == pytest.approx(8.0e-4 / 1.3e-3)
+    truth = sample["ground_truth"]
+    assert truth["volume_m3"] == pytest.approx(8.0e-4)
+    assert truth["composition"] == pytest.approx(sample["composition"], abs=1e-6)
+    assert json.loads((tmp_path / "report.json").read_text())["sample"] == sample
+    text = (tmp_path / "report.md").read_text()
+    assert "## Sample" in text
+    assert "DockIngestSample after the delivery: Sample ingested." in text
+    assert "Ingested **0.0008 m³**" in text
+    assert "**25.0 %** of it from the top layer `irradiated`" in text
+    assert "61.5 % of the excavated volume reached the dock" in text
+
+
+def test_a_run_that_ingested_nothing_says_so(tmp_path):
+    document = _sample_run(tmp_path, (0.0, 0.0))
+    sample = document["sample"]
+    assert (sample["ingested"], sample["volume_m3"]) == (False, 0.0)
+    assert sample["composition"] is sample["top_layer_share"] is None
+    assert sample["ground_truth"] is None
+    text = (tmp_path / "report.md").read_text()
+    assert "DockIngestSample after the delivery: No sample was present in dock." in text
+    assert "No regolith was ingested: the dock held none after the delivery." in text
+
+
+def test_a_run_without_a_budget_has_no_sample_section_but_a_note(tmp_path):
+    writer = SplitBagWriter(tmp_path / "bags", split_duration_s=4.0)
+    write_run(writer, SEGMENTS, JOINTS, start_s=START_S)
+    writer.close()
+    document = write_run_report(tmp_path, _document(), renders=False, draw=False)
+    assert document["sample"] is None
+    note = document["figure_notes"]["sample"]
+    assert note == "no /regolith/budget in the bags: no sample section."
+    assert "## Sample" not in (tmp_path / "report.md").read_text()

@@ -1,7 +1,7 @@
 """``rosrun ow_mission monitors``: the stack's monitors as components of one node (rospy wiring
 only): the power node, the battery, the OceanWATERS telemetry, the fault detector and the viz
-node, and on request the ``/faults`` server, each the class its own node runs, with the same
-topics, services and parameters.
+node, and on request the ``/faults`` server and OceanWATERS' ``DockIngestSample``, each the class
+its own node runs, with the same topics, services and parameters.
 
 Each is a small loop over the same streams. As separate processes, each received and
 deserialised every joint state again, and each paid the start-up of a Python process with rospy
@@ -16,6 +16,9 @@ ROS API: the union of the components' (see each class), under this node's name:
         component's parameters, as its own node's private namespace (``node_config``).
         ``~serve_faults`` (bool, default false): also serve ``/faults`` (the ``faults`` node's
         services and topics), with ``~faults``: the faults injected from the start.
+        ``~serve_dock_ingest`` (bool, default false): also serve the ``DockIngestSample``
+        action (:class:`~ow_lander.mast.dock_ingest_node.DockIngestServer`, which the
+        ``pan_tilt`` node serves in ``lander.launch``).
     Publishes: the viz markers as ``/viz/terrain``, ``/viz/tool_path``, ``/viz/ground_point``
         (where the viz node's ``~`` puts them).
 """
@@ -29,12 +32,13 @@ from typing import Any
 import rospy
 
 from ow_bringup.errors import ConfigError
-from ow_bringup.node_config import SERVE_FAULTS
+from ow_bringup.node_config import SERVE_DOCK_INGEST, SERVE_FAULTS
 from ow_description.description import URDF_PATH
 from ow_faults.detector_node import DetectorNode
 from ow_faults.errors import FaultError
 from ow_faults.faults_node import FaultsServer, hosted_server
 from ow_lander import errors as lander_errors
+from ow_lander.mast.dock_ingest_node import DockIngestServer
 from ow_lander.telemetry.config import TelemetryConfig
 from ow_lander.telemetry.node import TelemetryNode
 from ow_power import errors as power_errors
@@ -79,14 +83,15 @@ class Monitors:
     """
 
     def __init__(self, params: Mapping[str, Mapping[str, Any]]) -> None:
-        unknown = sorted(set(params) - {*CONFIGURED, SERVE_FAULTS})
+        unknown = sorted(set(params) - {*CONFIGURED, SERVE_FAULTS, SERVE_DOCK_INGEST})
         if unknown:
             msg = f"monitors: unknown components {unknown}; known: {list(CONFIGURED)}"
             raise ConfigError(msg)
+        for flag in (SERVE_FAULTS, SERVE_DOCK_INGEST):
+            if not isinstance(params.get(flag, False), bool):
+                msg = f"monitors: ~{flag} = {params[flag]!r} must be true or false"
+                raise ConfigError(msg)
         serve = params.get(SERVE_FAULTS, False)
-        if not isinstance(serve, bool):
-            msg = f"monitors: ~{SERVE_FAULTS} = {serve!r} must be true or false"
-            raise ConfigError(msg)
         if "faults" in params and not serve:
             msg = f"monitors: ~faults is given but ~{SERVE_FAULTS} is false"
             raise ConfigError(msg)
@@ -104,6 +109,9 @@ class Monitors:
         # the other nodes, and are not serialised back to the node that made them.
         self.battery = BatteryNode(battery, subscribe=False, build_later=True)
         self.power = PowerNode(power, listeners=[self.battery.on_power])
+        self.dock_ingest: DockIngestServer | None = None
+        if params.get(SERVE_DOCK_INGEST, False):
+            self.dock_ingest = DockIngestServer()
         manager = rospy.impl.registration.get_topic_manager()
         for topic in EVERY_MESSAGE_TOPICS:
             impl = manager.get_subscriber_impl(topic)

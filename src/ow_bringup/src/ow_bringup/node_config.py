@@ -44,6 +44,9 @@ FAULTS_YAML = FAULTS_CONFIG_DIR / "faults.yaml"
 #: Parameter of the ``monitors`` node asking it to serve ``/faults`` (the ``faults`` node as one
 #: of its components, with that node's parameters in its ``~faults``).
 SERVE_FAULTS = "serve_faults"
+#: Parameter of the ``monitors`` node asking it to serve OceanWATERS' ``DockIngestSample`` (as
+#: the ``pan_tilt`` node does in ``lander.launch``; the mission's stack has no ``pan_tilt``).
+SERVE_DOCK_INGEST = "serve_dock_ingest"
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,5 @@
 """The mission's steps through OceanWATERS' actions (rospy/actionlib wiring of
-:mod:`ow_mission.action_steps`)."""
+:mod:`ow_mission.action_steps`), and DockIngestSample after the delivery."""
 
 from __future__ import annotations
 
@@ -9,7 +9,9 @@ from actionlib_msgs.msg import GoalStatus
 
 import owl_msgs.msg
 from ow_lander.conversions import fill_fields
+from ow_lander.msg import DockIngestSampleAction, DockIngestSampleGoal
 from ow_mission.action_steps import StepResponse, action_goal, step_response
+from ow_mission.mission import DOCK_INGEST_SAMPLE, Ingestion
 from ow_runtime.action_client import ActionClient, connect
 
 
@@ -44,3 +46,33 @@ class ActionStepClient:
             raise TimeoutError
         succeeded = client.get_state() == GoalStatus.SUCCEEDED
         return step_response(action, succeeded, client.get_goal_status_text(), client.get_result())
+
+
+def ingest_sample(timeout_s: float) -> Ingestion:
+    """Send OceanWATERS' ``DockIngestSample`` (actionlib's client; served by the stack's
+    monitors node) and wait for its end, at most ``timeout_s`` s of wall time.
+
+    Returns:
+        What it ingested (``sample_ingested``) or why not, its ``wall_time_s`` and
+        ``sim_time_s`` left for the caller.
+    """
+    try:
+        client = connect(DOCK_INGEST_SAMPLE, DockIngestSampleAction, timeout_s)
+    except TimeoutError:
+        return Ingestion(message=f"no {DOCK_INGEST_SAMPLE} server within {timeout_s:g} s (wall)")
+    client.send_goal(DockIngestSampleGoal())
+    try:
+        if not client.wait_for_end(timeout_s):
+            client.cancel_goal()
+            return Ingestion(message=f"no end within {timeout_s:g} s (wall)")
+        result = client.get_result()
+        return Ingestion(
+            sample_ingested=bool(result is not None and result.sample_ingested),
+            succeeded=client.get_state() == GoalStatus.SUCCEEDED,
+            message=client.get_goal_status_text(),
+        )
+    finally:
+        # The mission ingests once: the server's status heartbeat need not come to it after.
+        ac = client.action_client
+        for topic in (ac.status_sub, ac.result_sub, ac.feedback_sub, ac.pub_goal, ac.pub_cancel):
+            topic.unregister()

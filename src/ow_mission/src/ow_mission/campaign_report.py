@@ -1,5 +1,6 @@
 """The campaign report: per-operation statistics and pass rule, success rate, ground-detection
-error, energies, plots and the failed missions with the command that replays each (no ROS).
+error, the delivered samples' volumes and top-layer shares, energies, plots and the failed
+missions with the command that replays each (no ROS).
 
 Statistics follow OceanWATERS' action tests: for each operation (mission step), the mean, the
 standard deviation (sample, n - 1; 0 for one sample) and n of the simulated duration and of the
@@ -195,10 +196,26 @@ def summarise(records: Mapping[int, Mapping[str, Any]], missions: int) -> dict[s
         "ground_error_m": distribution(
             [r["ground_error_m"] for r in ordered if r.get("ground_error_m") is not None]
         ),
+        **sample_statistics(ordered),
         "failed": failed,
         "with_faults": _rate([r for r in ordered if r.get("faults")]),
         "without_faults": _rate([r for r in ordered if not r.get("faults")]),
         "wall_time_s": distribution([r["wall_time_s"] for r in ordered if "wall_time_s" in r]),
+    }
+
+
+def sample_statistics(records: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """The delivered samples over the missions whose report has a sample section (the bags'
+    regolith budget, :func:`ow_mission.report.sample_summary`): ``delivered_volume_m3`` (the
+    volume ingested from the dock, 0 for a mission that ingested nothing), ``top_layer_share``
+    (over the missions that ingested a sample) and ``missions_with_sample``."""
+    samples = [r["sample"] for r in records if r.get("sample")]
+    return {
+        "delivered_volume_m3": distribution([float(s["volume_m3"]) for s in samples]),
+        "top_layer_share": distribution(
+            [float(s["top_layer_share"]) for s in samples if s["top_layer_share"] is not None]
+        ),
+        "missions_with_sample": sum(1 for s in samples if s["ingested"]),
     }
 
 
@@ -251,6 +268,22 @@ def markdown(name: str, summary: Mapping[str, Any], figures: Sequence[str]) -> s
         )
     else:
         lines.append("No mission found the ground.")
+    lines += ["", "## Delivered sample", ""]
+    volume, top = summary["delivered_volume_m3"], summary["top_layer_share"]
+    if volume["n"]:
+        lines.append(
+            f"{summary['missions_with_sample']} of {volume['n']} missions ingested a sample. "
+            f"Volume ingested from the dock: mean {volume['mean']:.3g} m³, std "
+            f"{volume['std']:.3g} m³, range [{volume['min']:.3g}, {volume['max']:.3g}] m³."
+        )
+        if top["n"]:
+            lines.append(
+                f"Share of it from the top layer, n = {top['n']}: mean "
+                f"{100 * top['mean']:.1f} %, range [{100 * top['min']:.1f}, "
+                f"{100 * top['max']:.1f}] %."
+            )
+    else:
+        lines.append("No mission's report has a sample section.")
     lines += ["", "## Failed missions", ""]
     if summary["failed"]:
         lines += ["| mission | seed | failed step | error | replay |", "|---|---|---|---|---|"]

@@ -234,6 +234,7 @@ def summarise_run(run_dir: Path) -> dict[str, Any]:
         "sim_time_s": report["sim_time_s"],
         "ground_z": report["ground_z"],
         "steps": steps,
+        "sample": report.get("sample"),
     }
     try:
         recording = read_recording(sorted((Path(run_dir) / "bags").glob("*.bag")))

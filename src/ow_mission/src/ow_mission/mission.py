@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ow_bringup.node_config import SERVE_FAULTS, STACK_NODES, stack_parameters
+from ow_bringup.node_config import SERVE_DOCK_INGEST, SERVE_FAULTS, STACK_NODES, stack_parameters
 from ow_cameras.protocol import CAMERA_CAPTURE
 from ow_faults.protocol import CHANGES_TOPIC
 from ow_mission.bag_prefetch import BagPrefetch
@@ -31,9 +31,11 @@ from ow_runtime.names import (
     BATTERY_STATE_OF_CHARGE,
     FLAGS_JOINT_STATES,
     JOINT_STATES,
+    MATERIAL_INGESTED,
     PAN_TILT_FAULTS_STATUS,
     POWER,
     POWER_FAULTS_STATUS,
+    REGOLITH_BUDGET,
     ROBOT_DESCRIPTION,
     SIM_RESUME,
     STAMP_SLACK_S,
@@ -121,12 +123,18 @@ class MissionReport:
     #: The stereo capture of the workspace before the first arm step
     #: (:func:`ow_mission.workspace_capture.write_capture`), None before it was tried.
     capture: dict[str, Any] | None = None
+    #: DockIngestSample after the delivery (:class:`Ingestion`), None before it was tried.
+    ingestion: Ingestion | None = None
 
     @property
     def success(self) -> bool:
-        """True when every step of the mission succeeded."""
+        """True when every step of the mission succeeded and a sample was ingested."""
         return (
-            not self.error and len(self.steps) == len(STEPS) and all(s.success for s in self.steps)
+            not self.error
+            and len(self.steps) == len(mission_steps(self.config))
+            and all(s.success for s in self.steps)
+            and self.ingestion is not None
+            and self.ingestion.sample_ingested
         )
 
     @property
@@ -158,6 +166,8 @@ class MissionReport:
             f"real-time factor {self.real_time_factor:.1f}x, "
             f"peak memory {self.peak_memory_mb:.0f} MB"
         )
+        if self.ingestion is not None:
+            lines.append(f"sample: {self.ingestion.summary()}")
         if self.error:
             lines.append(f"MISSION STOPPED: {self.error}")
         return "\n".join(lines)
@@ -178,7 +188,50 @@ class MissionReport:
             "steps": [{**asdict(s), "sim_time_s": s.sim_time_s} for s in self.steps],
             "fault_schedule": [f.to_json() for f in self.fault_schedule],
             "capture": self.capture,
+            "ingestion": None if self.ingestion is None else asdict(self.ingestion),
         }
+
+
+#: The action that ingests what lies in the sample dock (ow_lander, OceanWATERS HEAD).
+DOCK_INGEST_SAMPLE = "DockIngestSample"
+
+
+@dataclass
+class Ingestion:
+    """DockIngestSample after the delivery, as reported.
+
+    Attributes:
+        sample_ingested: the action's result: regolith lay in the dock and was ingested (its
+            volume is then > 0; the report gives it, from the bags).
+        succeeded: the goal ended SUCCEEDED (it also does when the dock was empty).
+        message: the goal's status text (OceanWATERS': "Sample ingested", "No sample was
+            present in dock", "Removal service failed: ..."), or why no goal ended.
+        sim_time_s: s, simulation time at which the sample was ingested.
+        wall_time_s: s of wall time the goal took.
+    """
+
+    sample_ingested: bool = False
+    succeeded: bool = False
+    message: str = ""
+    sim_time_s: float = 0.0
+    wall_time_s: float = 0.0
+
+    def summary(self) -> str:
+        """One line: ingested, or why the mission has no sample."""
+        if self.sample_ingested:
+            return f"ingested ({DOCK_INGEST_SAMPLE}: {self.message})"
+        return f"none ingested: {self.failure()}"
+
+    def failure(self) -> str:
+        """Why no sample was ingested ("" when one was)."""
+        if self.sample_ingested:
+            return ""
+        if self.succeeded:
+            return (
+                f"{DOCK_INGEST_SAMPLE}: {self.message}: the delivery left no regolith in the "
+                "sample dock"
+            )
+        return f"{DOCK_INGEST_SAMPLE} failed: {self.message}"
 
 
 @dataclass(frozen=True)
@@ -268,6 +321,19 @@ STEPS: tuple[Step, ...] = (
     ),
     Step("stow", "/arm/stow", "Stow", lambda c, g: {}),
 )
+
+
+#: The steps that make the first trench (the paper: grind the irradiated top 10 cm, dig it out
+#: and discard it). A mission with ``trench_depth: 0`` leaves them out and samples the surface.
+FIRST_TRENCH_STEPS = ("grind", "dig_spoil", "discard_spoil")
+
+
+def mission_steps(config: MissionConfig) -> tuple[Step, ...]:
+    """The steps ``config`` runs: :data:`STEPS`, without :data:`FIRST_TRENCH_STEPS` when its
+    ``trench_depth`` is 0 (the bottom grind and the sample's dig then start at the ground)."""
+    if config.trench_depth > 0.0:
+        return STEPS
+    return tuple(s for s in STEPS if s.name not in FIRST_TRENCH_STEPS)
 
 
 def write_report(
@@ -432,6 +498,10 @@ def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str,
                 # The faults: what the server holds, what the simulation flags, what the
                 # detector reports (the report's faults section).
                 *FAULT_TOPICS,
+                # The regolith: where the scooped volume went, and the sample ingested (the
+                # report's sample section).
+                REGOLITH_BUDGET,
+                MATERIAL_INGESTED,
             ],
         },
     }
@@ -484,9 +554,10 @@ def stack_processes(params: Mapping[str, dict[str, Any]], dig: str) -> list[Stac
     services of the mission's steps (``dig``: "linear" or "circular")."""
     ready = {**READY, "arm_services": (tuple(s.service.format(dig=dig) for s in STEPS), ())}
     processes = []
-    monitors: dict[str, Any] = {}
+    # DockIngestSample, after the delivery: served by the monitors (the stack has no pan_tilt).
+    monitors: dict[str, Any] = {SERVE_DOCK_INGEST: True}
     services: tuple[str, ...] = ()
-    topics: tuple[str, ...] = ()
+    topics: tuple[str, ...] = (f"/{DOCK_INGEST_SAMPLE}/status",)
     for node in STACK_NODES:
         ready_services, ready_topics = ready[node.executable]
         if node.executable in MONITORS:

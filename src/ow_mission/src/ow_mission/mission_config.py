@@ -57,7 +57,9 @@ class MissionConfig:
         expected_ground: m, ground z expected at (x, y); only sets the guarded move's start height.
         approach_height: m, start of the guarded move above expected_ground.
         search_distance: m, how far the guarded move searches down.
-        trench_depth: m, depth of the first grind (the paper: 10 cm of radiation-processed ice).
+        trench_depth: m, depth of the first grind (the paper: 10 cm of radiation-processed ice);
+            0: no first trench (no first grind, spoil dig or discard: the sample is ground and
+            dug from the surface).
         trench_length: m, length of the trench.
         parallel: trench radial (True) or perpendicular to the arm (False).
         bottom_grind_depth: m, depth of the second grind below the trench bottom.
@@ -158,7 +160,7 @@ class MissionConfig:
                 "search_distance", d.search_distance, low=0.01, high=2.0, unit="m"
             ),
             trench_depth=p.number(
-                "trench_depth", d.trench_depth, low=0.001, high=MAX_STEP_DEPTH, unit="m"
+                "trench_depth", d.trench_depth, low=0.0, high=MAX_STEP_DEPTH, unit="m"
             ),
             trench_length=p.number(
                 "trench_length", d.trench_length, low=0.01, high=MAX_LENGTH, unit="m"

@@ -1,8 +1,9 @@
 """``rosrun ow_mission mission [file.yaml]`` (and ``make demo``): the paper's sample-collection
 mission (section 3) through the real services, as an autonomy client runs it (see
 ``docs/mission.md``). It starts a private master and the stack configured by
-:mod:`ow_bringup.node_config`, calls the steps of :data:`ow_mission.mission.STEPS`, and writes
-``runs/<timestamp>/``; a failed step stops it, keeping everything recorded up to then. Before
+:mod:`ow_bringup.node_config`, calls the steps of :func:`ow_mission.mission.mission_steps`,
+ingests the delivered sample (DockIngestSample) and writes ``runs/<timestamp>/``; a failed step,
+or a delivery that left nothing to ingest, stops it, keeping everything recorded up to then. Before
 the first step it captures the workspace with the stereo camera
 (:mod:`ow_mission.workspace_capture`).
 """
@@ -32,7 +33,7 @@ from ow_bringup.stack import (
     wait_until,
 )
 from ow_description.description import ANTENNA_JOINTS
-from ow_mission.action_client_node import ActionStepClient
+from ow_mission.action_client_node import ActionStepClient, ingest_sample
 from ow_mission.bag_prefetch import BagPrefetch
 from ow_mission.camera_client_node import capture_workspace
 from ow_mission.errors import CaptureError
@@ -40,10 +41,10 @@ from ow_mission.fault_schedule_node import FaultScheduleRunner
 from ow_mission.figures import FiguresProcess, tell_figures
 from ow_mission.mission import (
     DRAIN_TIMEOUT_S,
-    STEPS,
     MissionReport,
     StepResult,
     drain_periods,
+    mission_steps,
     new_run_dir,
     node_parameters,
     stack_processes,
@@ -184,7 +185,7 @@ class MissionRunner:
         ground = c.expected_ground
         held = self._held()  # where the lockstep holds the simulation (None: no lockstep)
         self._capture_workspace()
-        for step in STEPS:
+        for step in mission_steps(c):
             service = step.service.format(dig=c.dig)
             srv_name = step.srv_type.format(Dig=c.dig.capitalize())
             fields = step.request(c, ground)
@@ -227,6 +228,8 @@ class MissionRunner:
             if not result.success:
                 self.report.error = f"step {step.name} ({service}) failed: {result.message}"
                 return
+            if step.name == "deliver_sample" and not self._ingest(result.sim_end_s):
+                return
 
     def _capture_workspace(self) -> None:
         """One stereo capture of the workspace, the simulation paused where it stands (t = 0
@@ -247,6 +250,20 @@ class MissionRunner:
         capture["wall_time_s"] = time.monotonic() - wall0
         self.report.capture = capture
         print(f"[mission] capture: {capture['wall_time_s']:.2f} s wall, {outcome}", flush=True)
+
+    def _ingest(self, sim_time_s: float) -> bool:
+        """DockIngestSample once the delivery has ended, the simulation standing where it
+        ended (the ingestion takes no simulated time); whether a sample was ingested (if not,
+        the mission stops saying why)."""
+        wall0 = time.monotonic()
+        ingestion = ingest_sample(self.config.step_timeout_s)
+        ingestion.sim_time_s = sim_time_s
+        ingestion.wall_time_s = time.monotonic() - wall0
+        self.report.ingestion = ingestion
+        print(f"[mission] sample: {ingestion.summary()}", flush=True)
+        if not ingestion.sample_ingested:
+            self.report.error = f"no sample was ingested: {ingestion.failure()}"
+        return ingestion.sample_ingested
 
     def _held(self) -> float | None:
         """s, where the arm services hold the simulation (the lockstep); None without the

@@ -5,7 +5,8 @@ them) and its ``bags/``, and writes: ``power.png`` (power with the steps' signed
 absolute-value mechanical energies), ``trench_profile.png`` (terrain before and after along and
 across the trench, with the requested depths), ``guarded_move.png`` (the ground detector, the
 paper's Figure 11), stills in ``renders/`` and ``replay.gif`` (the whole mission, animated),
-``battery.png`` and the faults section (:mod:`ow_mission.fault_report`), then
+``battery.png`` and the faults section (:mod:`ow_mission.fault_report`), the delivered sample
+(:func:`sample_summary`: volume, composition, top layer's share, the regolith budget), then
 ``report.md`` linking each figure that exists, and ``report.json`` with the energies from the bags
 and the figures' file names. ``python -m ow_mission.report RUN_DIR`` rebuilds them for a run.
 
@@ -36,11 +37,18 @@ from ow_mission.stills import StillsRendering, plan_stills
 from ow_mission.workspace_capture import capture_figure
 from ow_power.bagread import TopicMessages, read_messages
 from ow_power.errors import BagReadError
+from ow_runtime.names import MATERIAL_INGESTED, REGOLITH_BUDGET
 
 if TYPE_CHECKING:
     from ow_mission.mission_config import MissionConfig
     from ow_power.analysis import Analysis
 
+
+#: The regolith's topics the sample section reads: the budget (latched, at each change) and the
+#: ground truth of each ingestion (OceanWATERS' ow_materials/BulkExcavation).
+SAMPLE_TOPICS = (REGOLITH_BUDGET, MATERIAL_INGESTED)
+#: The accounts of ow_msgs/RegolithBudget, in its order.
+BUDGET_ACCOUNTS = ("excavated", "in_scoop", "in_dock", "ingested", "spilled", "deposited")
 
 #: Processes rendering the stills and the replay: the stills in one, the replay in the other,
 #: which writes its GIF too (its frames never come to this process).
@@ -96,7 +104,8 @@ def _attempt(figures: Figures, role: str, make: Callable[[], str | None]) -> Non
 
 def read_report_messages(bags: Sequence[Path], joint_states: bool = True) -> TopicMessages:
     """Every topic the report uses (:data:`ow_power.analysis.TOPICS`,
-    :data:`ow_mission.recording.TOPICS`, :data:`ow_mission.fault_report.TOPICS`), read from
+    :data:`ow_mission.recording.TOPICS`, :data:`ow_mission.fault_report.TOPICS`,
+    :data:`SAMPLE_TOPICS`), read from
     ``bags`` in one pass; with ``joint_states`` False, all but ``/joint_states`` (half the
     messages): what the report's numbers need when ``/power`` and the detector were recorded
     (:func:`write_run_report` with ``draw=False`` reads them when not).
@@ -107,7 +116,7 @@ def read_report_messages(bags: Sequence[Path], joint_states: bool = True) -> Top
     from ow_mission import fault_report, recording
     from ow_power import analysis
 
-    topics = {*analysis.TOPICS, *recording.TOPICS, *fault_report.TOPICS}
+    topics = {*analysis.TOPICS, *recording.TOPICS, *fault_report.TOPICS, *SAMPLE_TOPICS}
     if not joint_states:
         topics.discard(recording.JOINT_STATES_TOPIC)
     return read_messages(bags, topics)
@@ -367,6 +376,64 @@ def faults_section(
     return None
 
 
+def sample_summary(messages: TopicMessages) -> dict[str, Any] | None:
+    """The delivered sample, from the last ``/regolith/budget`` of the bags' ``messages`` (None
+    when they have none): what was ingested from the dock (``volume_m3``, ``mass_kg``, the
+    share of the volume of each material in ``composition`` and of each terrain layer in
+    ``layers``, ``top_layer`` and ``top_layer_share``; shares None when nothing was ingested),
+    ``budget_m3`` (where every volume the scoop took went: the six accounts) and
+    ``dock_share`` (the part of the excavated volume that reached the dock: ingested + in the
+    dock, over excavated). ``ground_truth`` is the last ``/ground_truth/material_ingested``:
+    OceanWATERS' BulkExcavation (volume m^3, composition by material), or None.
+    """
+    budgets = messages.get(REGOLITH_BUDGET, [])
+    if not budgets:
+        return None
+    last = budgets[-1][1]
+    accounts = {name: getattr(last, name) for name in BUDGET_ACCOUNTS}
+    ingested = accounts["ingested"]
+    volume = float(ingested.volume)
+
+    def shares(names: Sequence[str], volumes: Sequence[float]) -> dict[str, float] | None:
+        if volume <= 0.0:
+            return None
+        return {str(n): float(v) / volume for n, v in zip(names, volumes, strict=True)}
+
+    layers = shares(list(last.layers), list(ingested.layer_volumes))
+    excavated = float(accounts["excavated"].volume)
+    summary: dict[str, Any] = {
+        "ingested": volume > 0.0,
+        "volume_m3": volume,
+        "mass_kg": float(ingested.mass),
+        "composition": shares(list(last.materials), list(ingested.material_volumes)),
+        "layers": layers,
+        "top_layer": str(last.top_layer),
+        "top_layer_share": None if layers is None else layers.get(str(last.top_layer), 0.0),
+        "budget_m3": {name: float(a.volume) for name, a in accounts.items()},
+        "dock_share": (
+            (volume + float(accounts["in_dock"].volume)) / excavated if excavated > 0.0 else None
+        ),
+        "ground_truth": None,
+    }
+    truths = messages.get(MATERIAL_INGESTED, [])
+    if truths:
+        truth = truths[-1][1]
+        summary["ground_truth"] = {
+            "volume_m3": float(truth.volume),
+            "composition": {str(c.name): float(c.proportion) for c in truth.composition},
+            "stamp_s": float(truth.header.stamp.sec) + 1e-9 * float(truth.header.stamp.nanosec),
+        }
+    return summary
+
+
+def sample_section(document: dict[str, Any], messages: TopicMessages) -> str | None:
+    """``document['sample']`` (:func:`sample_summary`); a note when the bags hold no budget."""
+    document["sample"] = sample_summary(messages)
+    if document["sample"] is None:
+        return f"no {REGOLITH_BUDGET} in the bags: no sample section."
+    return None
+
+
 def _report_messages(
     bags: Sequence[Path],
     document: Mapping[str, Any],
@@ -548,6 +615,7 @@ def write_run_report(
         if messages is not None and bags:
             _figures_from_bags(run_dir, document, bags, messages, figures, renders)
         if messages is not None:
+            _attempt(figures, "sample", functools.partial(sample_section, document, messages))
             _attempt(
                 figures,
                 "battery",

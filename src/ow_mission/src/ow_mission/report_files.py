@@ -112,6 +112,7 @@ def markdown(run_dir: Path, document: Mapping[str, Any], figures: Figures) -> st
         "with P0* adds the auxiliary power. *Peak mech.* is the peak of sum |tau*omega|, "
         "*peak total* that of the total power with P0.",
         "",
+        *sample_lines(document),
         *_faults_lines(document),
         "## Figures",
         "",
@@ -136,6 +137,42 @@ def markdown(run_dir: Path, document: Mapping[str, Any], figures: Figures) -> st
         "from the bags with `python -m ow_mission.report <run dir>`.",
     ]
     return "\n".join(lines) + "\n"
+
+
+def sample_lines(document: Mapping[str, Any]) -> list[str]:
+    """``report.md``'s sample section: DockIngestSample's outcome and, from the bags' regolith
+    budget (``document['sample']``), the ingested volume, its composition, the top layer's
+    share and where the rest of the scooped regolith went."""
+    ingestion = document.get("ingestion")
+    sample = document.get("sample")
+    if ingestion is None and sample is None:
+        return []
+    lines = ["## Sample", ""]
+    if ingestion is not None:
+        lines += [f"DockIngestSample after the delivery: {ingestion['message'] or '-'}.", ""]
+    if sample is None:
+        return lines
+    if sample["ingested"]:
+        composition = ", ".join(
+            f"{name} {100 * share:.1f} %" for name, share in sample["composition"].items()
+        )
+        lines += [
+            f"Ingested **{sample['volume_m3']:.3g} m³** ({sample['mass_kg']:.3g} kg): "
+            f"{composition}; **{100 * sample['top_layer_share']:.1f} %** of it from the top "
+            f"layer `{sample['top_layer']}` (the irradiated layer the first trench removes).",
+            "",
+        ]
+    else:
+        lines += ["No regolith was ingested: the dock held none after the delivery.", ""]
+    budget = sample["budget_m3"]
+    share = sample["dock_share"]
+    lines += [
+        "Where the scooped regolith went (m³, the simulation's budget at the end): "
+        + ", ".join(f"{name.replace('_', ' ')} {volume:.3g}" for name, volume in budget.items())
+        + (f"; {100 * share:.1f} % of the excavated volume reached the dock." if share else "."),
+        "",
+    ]
+    return lines
 
 
 def _faults_lines(document: Mapping[str, Any]) -> list[str]:

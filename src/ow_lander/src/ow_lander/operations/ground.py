@@ -19,7 +19,7 @@ for the guarded move.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -39,7 +39,16 @@ from ow_description.errors import IKError
 from ow_description.terrain import HeightMap
 from ow_description.trajectory import PathSegment, Speed
 from ow_lander.errors import PlanningError
-from ow_lander.operations.motions import ArmMotions, align, line, rz
+from ow_lander.operations.motions import (
+    DOWN,
+    TURN_STEP_RAD,
+    ArmMotions,
+    align,
+    angle_between,
+    line,
+    rz,
+    turned,
+)
 from ow_lander.operations.operation_plan import OperationPlan, check_finite
 from ow_lander.operations.registry import OPERATIONS
 from ow_lander.operations.workspace import GRIND_PASS_SHIFT, grind_axes
@@ -49,6 +58,9 @@ FloatArray = npt.NDArray[np.float64]
 
 #: m, height above the ground of the tool before it goes down and after it comes up.
 APPROACH_HEIGHT = 0.2
+#: m, the end of a linear cut over which the scoop curls from its cutting attitude to level
+#: (bottom down, mouth up), the tip at the cut's depth: it lifts out holding what it cut.
+CURL_LENGTH = 0.05
 #: rad, sweep of the circular dig (OceanWATERS: 2 pi / 3 of the distal pitch).
 CIRCULAR_SWEEP = 2 * math.pi / 3
 #: rad, (shoulder pitch, prox, dist, hand, scoop) of the reference configurations, aimed by the
@@ -369,14 +381,20 @@ def _linear_cut(
     cut_end: FloatArray,
     ground: float,
 ) -> list[PathSegment]:
-    """Approach, lower, dip in, cut, lift out and retract, holding the scoop attitude of
-    ``reference`` (turned with the shoulder yaw)."""
+    """Approach, lower and dip in with the scoop attitude of ``reference`` (turned with the
+    shoulder yaw); cut, curling the scoop level over the cut's last ``CURL_LENGTH`` (the tip at
+    the cut's depth); lift out and retract with the scoop level: it leaves the trench with
+    what it cut (:func:`_curl`)."""
     yaw = float(reference[0])
     heading = np.array([math.cos(yaw), math.sin(yaw), 0.0])
     R0 = m.rotation(reference, q, SCOOP_TIP_FRAME)
+    R_level = align(R0, 2, DOWN)
+
+    def cutting(point: FloatArray) -> FloatArray:
+        return rz(m.yaw(point[0], point[1]) - yaw) @ R0
 
     def level(point: FloatArray) -> FloatArray:
-        return rz(m.yaw(point[0], point[1]) - yaw) @ R0
+        return rz(m.yaw(point[0], point[1]) - yaw) @ R_level
 
     # Dip in and lift out at 45 degrees between 5 cm above the ground and the cut's depth.
     rise = ground + 0.05 - float(cut_start[2])
@@ -388,18 +406,53 @@ def _linear_cut(
     goal = m.planner.solve_ik(SCOOP_TIP_FRAME, above, R0, reference, ctx)
     segments = [PathSegment("approach", m.approach(start, goal, reference, ctx))]
     arm = segments[0].waypoints[-1]
+    for label, point in (("lower", entry), ("dip_in", cut_start)):
+        path = m.cartesian(arm, SCOOP_TIP_FRAME, point, cutting, dig if label == "dip_in" else ctx)
+        segments.append(PathSegment(label, path, Speed.FREE if label == "lower" else Speed.DIG))
+        arm = path[-1]
+    length = float(np.linalg.norm(cut_end - cut_start))
+    curl_start = cut_end - (cut_end - cut_start) * min(1.0, CURL_LENGTH / length)
+    cut = [arm[None, :]]
+    if length > CURL_LENGTH:
+        cut.append(m.cartesian(arm, SCOOP_TIP_FRAME, curl_start, cutting, dig)[1:])
+    cut.append(_curl(m, cut[-1][-1], curl_start, cut_end, cutting, level, dig)[1:])
+    segments.append(PathSegment("cut", np.vstack(cut), Speed.DIG))
+    arm = segments[-1].waypoints[-1]
     steps = (
-        ("lower", entry, ctx, Speed.FREE),
-        ("dip_in", cut_start, dig, Speed.DIG),
-        ("cut", cut_end, dig, Speed.DIG),
-        ("lift_out", out, dig, Speed.DIG),
-        ("retract", out + np.array([0.0, 0.0, APPROACH_HEIGHT - 0.05]), dig, Speed.FREE),
+        ("lift_out", out, Speed.DIG),
+        ("retract", out + np.array([0.0, 0.0, APPROACH_HEIGHT - 0.05]), Speed.FREE),
     )
-    for label, point, check, speed in steps:
-        path = m.cartesian(arm, SCOOP_TIP_FRAME, point, level, check)
+    for label, point, speed in steps:
+        path = m.cartesian(arm, SCOOP_TIP_FRAME, point, level, dig)
         segments.append(PathSegment(label, path, speed))
         arm = path[-1]
     return segments
+
+
+def _curl(
+    m: ArmMotions,
+    arm: FloatArray,
+    start: FloatArray,
+    end: FloatArray,
+    cutting: Callable[[FloatArray], FloatArray],
+    level: Callable[[FloatArray], FloatArray],
+    ctx: CheckContext,
+) -> FloatArray:
+    """(n, 6) rad from ``arm``: the scoop tip along the straight line from ``start`` to
+    ``end`` (3,) m while the scoop turns evenly from its ``cutting`` orientation to ``level``
+    (each a function of the tip's position), at most ``TURN_STEP_RAD`` per waypoint.
+
+    The simulation keeps a scoop's fill while it digs, whatever its attitude, and spills what
+    lies above its lip as soon as the dig ends (docs/regolith.md): a scoop leaving the trench at
+    its cutting attitude (its lip tilted ~32 degrees) loses half of a full load there. Curled
+    level while still cutting forward (mouth first, so the dig goes on), it keeps the load.
+    """
+    turn = angle_between(cutting(start), level(end))
+    n = max(1, math.ceil(float(np.linalg.norm(end - start)) / _step(m) - 1e-9))
+    n = max(n, math.ceil(turn / TURN_STEP_RAD - 1e-9))
+    points = [start + (end - start) * (i / n) for i in range(1, n + 1)]
+    rotations = [turned(cutting(p), level(p), i / n) for i, p in enumerate(points, start=1)]
+    return m.planner.plan_cartesian(arm, SCOOP_TIP_FRAME, points, rotations, ctx)
 
 
 def plan_dig_circular(

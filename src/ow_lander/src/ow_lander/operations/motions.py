@@ -35,6 +35,12 @@ FloatArray = npt.NDArray[np.float64]
 #: m, clearance above the terrain a tool is lifted to when an operation starts in contact (above
 #: the depth of the link deepest in the terrain).
 LIFT_OFF_CLEARANCE = 0.10
+#: Straight down in base_link: the scoop tip frame's z when the scoop is level (its bottom down,
+#: its mouth up: it keeps what it holds, docs/regolith.md).
+DOWN = np.array([0.0, 0.0, -1.0])
+#: rad, how far inside the travel of a continuous joint an approach ends when it can (a whole
+#: turn further from where the joint is, if need be): room for the operation's own turns.
+TURN_HEADROOM_RAD = math.pi
 #: m, a tool closer than this to the terrain at the start of an operation is lifted off first
 #: (it may sit in a dent it made, whose walls the next motion would scrape).
 CONTACT_CLEARANCE = 0.02
@@ -69,12 +75,45 @@ def align(R: FloatArray, axis: int, target: FloatArray) -> FloatArray:
     return (np.eye(3) + K + K @ K / (1 + c)) @ R
 
 
+def turned(R_from: FloatArray, R_to: FloatArray, fraction: float) -> FloatArray:
+    """``R_from`` (3, 3) turned by ``fraction`` (0 to 1) of the rotation taking it onto ``R_to``
+    (3, 3), about that rotation's fixed axis: the orientations between two, evenly spaced."""
+    relative = R_to @ R_from.T
+    cos_angle = min(1.0, max(-1.0, (float(np.trace(relative)) - 1.0) / 2.0))
+    angle = math.acos(cos_angle)
+    if angle < 1e-9:
+        return R_from.copy()
+    axis = np.array(
+        [
+            relative[2, 1] - relative[1, 2],
+            relative[0, 2] - relative[2, 0],
+            relative[1, 0] - relative[0, 1],
+        ]
+    )
+    if np.linalg.norm(axis) < 1e-9:  # a half turn: the axis is the eigenvector of eigenvalue 1
+        values, vectors = np.linalg.eigh(relative + relative.T)
+        axis = vectors[:, int(np.argmax(values))]
+    axis = axis / np.linalg.norm(axis)
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    a = fraction * angle
+    return (np.eye(3) + math.sin(a) * K + (1.0 - math.cos(a)) * K @ K) @ R_from
+
+
+def angle_between(R_a: FloatArray, R_b: FloatArray) -> float:
+    """rad, the angle of the rotation taking orientation ``R_a`` (3, 3) onto ``R_b``."""
+    cos_angle = (float(np.trace(R_b @ R_a.T)) - 1.0) / 2.0
+    return math.acos(min(1.0, max(-1.0, cos_angle)))
+
+
 def line(start: FloatArray, end: FloatArray, step: float) -> list[FloatArray]:
     """Points from ``start`` (excluded) to ``end`` (included), at most ``step`` m apart."""
     start, end = np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64)
     n = max(1, math.ceil(float(np.linalg.norm(end - start)) / step - 1e-9))
     return [start + (end - start) * (i / n) for i in range(1, n + 1)]
 
+
+#: rad, the largest turn of a tool between two waypoints of a Cartesian path that turns it.
+TURN_STEP_RAD = 0.05
 
 #: rad, how far past its first collision-free state an escape from a contact goes.
 ESCAPE_MARGIN_RAD = 0.05
@@ -153,8 +192,11 @@ class ArmMotions:
         # The hand and scoop yaw turn a full turn either way: first the same pose a whole turn
         # nearer to where the joints are now (after an earlier operation left the wrist a turn
         # away), then the goal as solved (near the operation's reference turn).
+        # Not so near that the operation after the approach (a sweep of the hand, a grind's
+        # turns) would run into the end of the simulated joint's travel: repeated operations
+        # wind the wrist up a turn at a time.
         goals = [goal]
-        near = planner.unwrap(goal, start)
+        near = planner.unwrap(goal, start, headroom=TURN_HEADROOM_RAD)
         if not np.allclose(near, goal):
             goals.insert(0, near)
         safe = planner.safe
@@ -176,6 +218,36 @@ class ArmMotions:
             if straight is not None:
                 return straight
         return planner.plan_free(start, goal, ctx)
+
+    def level_route(self, start: FloatArray, goal: FloatArray, ctx: CheckContext) -> FloatArray:
+        """(n, 6) rad: straight joint moves from ``start`` to ``goal`` that keep the scoop's
+        attitude as level as their ends: the direct move, else the shoulder and scoop yaws
+        first, else the three pitches first.
+
+        The scoop is level (mouth up) when the hand yaw is a whole number of turns and the
+        three pitches sum to zero (the distal link horizontal, the hand below it), or at the
+        half turn and pi; both conditions are linear in the joints, so a straight move between
+        two level poses of the same family keeps the scoop level all the way, and so do these
+        staged moves (each leg keeps the pitches, or moves them together).
+
+        Raises:
+            PlanningError: none of them is valid (the direct move's reason).
+        """
+        planner = self.planner
+        pitches = [ARM_JOINTS.index(j) for j in ("j_shou_pitch", "j_prox_pitch", "j_dist_pitch")]
+        yaws_first = goal.copy()
+        yaws_first[pitches] = start[pitches]
+        pitches_first = start.copy()
+        pitches_first[pitches] = goal[pitches]
+        for vias in ((), (yaws_first,), (pitches_first,)):
+            path = np.vstack([start, *vias, goal])
+            if planner.path_valid(path, ctx):
+                planner.stats.direct_segments += len(path) - 1
+                return path
+        blocked = planner.first_invalid(np.vstack([start, goal]), ctx)
+        reason = "" if blocked is None else f": {planner.explain(blocked, ctx)}"
+        msg = f"no straight joint move keeps the scoop level to the goal{reason}"
+        raise PlanningError(msg)
 
     def start(self, q: FloatArray, terrain: HeightMap | None) -> FloatArray:
         """(6,) rad, the arm joints of ``q``, where every plan starts (after :meth:`escape` and

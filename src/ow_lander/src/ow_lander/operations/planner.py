@@ -44,10 +44,23 @@ FloatArray = npt.NDArray[np.float64]
 
 #: m, sample dock (lander_sample_dock0) box centre in base_link.
 DOCK_CENTRE = (0.555, -0.35, 0.65)
-#: m, height of the scoop tip above the dock centre when pouring.
+#: m, height of the scoop tip above the dock centre when a delivery to the dock ends.
 DOCK_POUR_HEIGHT = 0.25
 #: rad, how far the scoop is tipped (about its own y axis) to pour.
 POUR_TILT = math.radians(110)
+#: The delivery to the dock (:meth:`Operations.plan_deliver_sample`): the scoop level, its mouth
+#: along the dock's length (+y of base_link; the box is 30 cm long along y, 9.5 cm wide across
+#: x), its tip (m, base_link) over the dock's +y half, 0.3 m above the dock; the arm's pitch
+#: joints then turn about axes across the dock, so that turning the distal pitch alone tips the
+#: scoop forward and its lip pours along the dock's length, all of it into the dock.
+DOCK_STAGING_TIP = (0.56, -0.25, 0.95)
+#: rad, the heading of the scoop's mouth at the staging pose.
+DOCK_STAGING_HEADING = math.pi / 2
+#: rad, (shoulder yaw ... scoop yaw) near the staging pose, the seed of its IK: the arm reaching
+#: the dock from the front with its hand yaw at 0, the family of poses the arm digs in, in
+#: which the scoop stays level along any straight joint move (OceanWATERS' own delivery goes
+#: through named joint poses too: arm_deliver_staging_1, _2 and arm_deliver_final).
+DOCK_STAGING_REFERENCE = (-1.72, 1.62, -0.43, -1.19, 0.0, -1.42)
 
 
 class Operations:
@@ -147,9 +160,12 @@ class Operations:
         self, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]
     ) -> OperationPlan:
         """Carry the scoop upright to the pour point, then tip it to pour: over the sample dock
-        (use_defaults) or at (x, y, z) to discard. The scoop tip is held at the point, or, with
-        ``held: l_scoop`` (OceanWATERS' TaskDiscardSample), the scoop link's origin, tipping
-        about it."""
+        (use_defaults) or at (x, y, z) to discard. To discard, the scoop tip is held at the
+        point, or, with ``held: l_scoop`` (OceanWATERS' TaskDiscardSample), the scoop link's
+        origin, tipping about it. To the dock, the scoop is carried level to a staging pose over
+        the dock and pours there, all it holds into the dock (:meth:`_dock_delivery`); it then
+        ends at the pour point, tipped. Where that cannot be planned, it is carried to the pour
+        point and tipped there as a discard is (noted: the scoop pours on the way)."""
         use_dock = bool(request.get("use_defaults"))
         if use_dock:
             p: dict[str, Any] = {
@@ -169,6 +185,32 @@ class Operations:
             origin = (np.linalg.inv(X_tip) @ self.model.fk(q, SCOOP_LINK))[:3, 3]
         start = self.motions.start(q, terrain)
         ctx = self.motions.context(q, terrain)
+        if not use_dock:
+            return self._pour_at(start, point, ctx, p, origin)
+        try:
+            return self._dock_delivery(start, point, ctx, p)
+        except PlanningError as error:
+            plan = self._pour_at(start, point, ctx, p, origin)
+            plan.notes.append(
+                f"the pour from the dock's staging pose cannot be planned ({error}): poured at "
+                "the pour point instead, which tips the scoop on the way"
+            )
+            return plan
+
+    def _pour_at(
+        self,
+        start: FloatArray,
+        point: FloatArray,
+        ctx: CheckContext,
+        p: dict[str, Any],
+        origin: FloatArray | None,
+    ) -> OperationPlan:
+        """Carry the scoop upright over ``point`` (3,) m and tip it there (the held frame's
+        ``origin`` (3,) m in the tip frame at the point; None: the tip).
+
+        Raises:
+            PlanningError: no heading has a path (the message gives the first reason).
+        """
         errors: list[str] = []
         goals: list[tuple[FloatArray, FloatArray]] = []
         # The scoop's heading over the pour point is free: the first heading (in order of
@@ -202,6 +244,54 @@ class Operations:
             return self._delivery(approach, tip, p)
         msg = f"no way to pour at ({point[0]:.3f}, {point[1]:.3f}, {point[2]:.3f}) m: {errors[0]}"
         raise PlanningError(msg)
+
+    def _dock_delivery(
+        self, start: FloatArray, point: FloatArray, ctx: CheckContext, p: dict[str, Any]
+    ) -> OperationPlan:
+        """The delivery to the sample dock: carry the scoop level to the staging pose
+        (:data:`DOCK_STAGING_TIP`), pour by turning the distal pitch alone by ``POUR_TILT``,
+        then take the (empty) scoop to a pour pose at ``point`` (3,) m: tipped by ``POUR_TILT``,
+        its mouth along the first heading straight moves reach (:data:`DOCK_STAGING_HEADING`,
+        then a discard's), else by a sampled path.
+
+        Raises:
+            PlanningError: the staging pose, the carry, the pour or the last move cannot be
+                planned (the message says which).
+        """
+        carry_R, _ = _carry_and_pour_rotations(DOCK_STAGING_HEADING)
+        reference = np.array(DOCK_STAGING_REFERENCE)
+        staging = self.planner.solve_ik(
+            SCOOP_TIP_FRAME, np.array(DOCK_STAGING_TIP), carry_R, reference, ctx
+        )
+        # The hand and scoop yaws the whole turns nearest the start's: a straight move that
+        # turned the hand yaw by a whole turn would tip the scoop over on the way. The pitches
+        # stay as solved near the reference (their sum, zero, keeps the scoop level).
+        pitches = [ARM_JOINTS.index(j) for j in ("j_shou_pitch", "j_prox_pitch", "j_dist_pitch")]
+        unwrapped = self.planner.unwrap(staging, start)
+        unwrapped[pitches] = staging[pitches]
+        approach = self.motions.level_route(start, unwrapped, ctx)
+        poured = unwrapped.copy()
+        poured[ARM_JOINTS.index("j_dist_pitch")] += POUR_TILT
+        pour = self.planner.plan_joint_sweep(unwrapped, poured, ctx)
+        # Empty, the scoop goes on to the pour point, where every delivery ends, as a discard
+        # would pour there (straight moves at the first heading they reach, else sampled), its
+        # mouth still along the dock first.
+        errors: list[str] = []
+        goals: list[FloatArray] = []
+        for seed in (poured, self.planner.safe):
+            for phi in (DOCK_STAGING_HEADING, *_pour_headings(point)):
+                solved = self._carry_and_pour(point, phi, seed, ctx, errors)
+                if solved is None:
+                    continue
+                present = self.planner.plan_straight(poured, solved[1], ctx)
+                if present is not None:
+                    return self._delivery(approach, np.vstack([pour, present[1:]]), p)
+                goals.append(solved[1])
+        if not goals:
+            msg = f"no pour pose at the point: {errors[0]}"
+            raise PlanningError(msg)
+        present = self.planner.plan_free(poured, goals[0], ctx)
+        return self._delivery(approach, np.vstack([pour, present[1:]]), p)
 
     def plan_discard(
         self, q: FloatArray, terrain: HeightMap | None, request: Mapping[str, Any]

@@ -98,11 +98,12 @@ class ArmPlanner:
         configured joint resolution) is valid (see :meth:`StateChecker.path_valid`)."""
         return self.checker.path_valid(waypoints, ctx, resolution)
 
-    def unwrap(self, arm: FloatArray, reference: FloatArray) -> FloatArray:
+    def unwrap(self, arm: FloatArray, reference: FloatArray, headroom: float = 0.0) -> FloatArray:
         """``arm`` with each continuous joint moved by whole turns to the value closest to
         ``reference`` that stays within its travel (the same configuration, reached from
-        ``reference`` the shorter way round)."""
-        return self.checker.unwrap(arm, reference)
+        ``reference`` the shorter way round), ``headroom`` rad inside it when possible (see
+        :meth:`StateChecker.unwrap`)."""
+        return self.checker.unwrap(arm, reference, headroom)
 
     # -------------------------------------------------------------------------------- work
     def work(self, waypoints: FloatArray, base: FloatArray, step: float = WORK_STEP_RAD) -> float:

@@ -151,6 +151,13 @@ class StateChecker:
         """Why ``arm`` is invalid, in words (joint limits or contacts)."""
         q = self.full(arm, ctx.base)
         problems = self.model.limit_violations(q, ARM_JOINTS)
+        # A continuous joint holds any angle, but the simulated joint turns only so far.
+        for j, lower, upper in self._full_turn:
+            if not lower - 1e-9 <= arm[j] <= upper + 1e-9:
+                problems.append(
+                    f"{ARM_JOINTS[j]}={arm[j]:.3f} rad is beyond the joint's travel "
+                    f"[{lower:.3f}, {upper:.3f}]"
+                )
         report = self.model.collision_report(q, ctx.terrain, ctx.terrain_links, ctx.terrain_margin)
         if report.in_collision:
             problems.append(report.describe())
@@ -239,16 +246,18 @@ class StateChecker:
                 return i
         return None
 
-    def unwrap(self, arm: FloatArray, reference: FloatArray) -> FloatArray:
+    def unwrap(self, arm: FloatArray, reference: FloatArray, headroom: float = 0.0) -> FloatArray:
         """``arm`` with each full-turn joint moved by whole turns to the value closest to
-        ``reference`` that stays within its limits."""
+        ``reference`` that stays within its limits, and ``headroom`` rad inside them when a
+        value that close exists (room for the motion that follows: a sweep of the hand from
+        there must not run into the end of the simulated joint's travel)."""
         out = np.array(arm, dtype=np.float64)
         for j, lower, upper in self._full_turn:
             value = float(out[j])
             turns = round((float(reference[j]) - value) / (2 * math.pi))
-            for k in (turns, turns - 1, turns + 1):
-                candidate = value + 2 * math.pi * k
-                if lower <= candidate <= upper:
-                    out[j] = candidate
-                    break
+            candidates = [value + 2 * math.pi * k for k in (turns, turns - 1, turns + 1)]
+            inside = [c for c in candidates if lower <= c <= upper]
+            roomy = [c for c in inside if lower + headroom <= c <= upper - headroom]
+            if roomy or inside:
+                out[j] = (roomy or inside)[0]
         return out
