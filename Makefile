@@ -4,7 +4,7 @@ ROOT := $(CURDIR)
 RUN := source $(ROOT)/env.sh &&
 PYTEST_ARGS ?=
 
-.PHONY: setup demo test test-ray unit integration lint bench shell dem-tables clean
+.PHONY: setup demo test test-ray test-dem-live unit integration lint bench shell dem-tables clean
 
 setup:
 	@scripts/setup.sh
@@ -19,6 +19,10 @@ test: setup lint
 test-ray: setup
 	@$(RUN) OW_RAY_TESTS=1 python -m pytest tests/integration/test_campaign.py $(PYTEST_ARGS)
 
+# The live DEM dig in the running stack (minutes of wall time), which make test skips.
+test-dem-live: setup
+	@$(RUN) OW_DEM_LIVE_TESTS=1 python -m pytest tests/integration/test_dem_live.py $(PYTEST_ARGS)
+
 unit: setup
 	@$(RUN) python -m pytest -n 2 tests/unit $(PYTEST_ARGS)
 
@@ -30,7 +34,9 @@ lint: setup
 	  && mypy
 
 bench: setup
-	@$(RUN) for b in bench/*.py; do python $$b || exit 1; done
+	@$(RUN) for b in bench/*.py; do \
+	  if [ "$$b" = bench/cosim.py ] && [ -z "$$OW_BENCH_COSIM" ]; then continue; fi; \
+	  python $$b || exit 1; done
 
 # An interactive shell with the workspace environment (venv, devel space, ROS_HOSTNAME, ROS_HOME).
 shell: setup

@@ -155,7 +155,7 @@ def test_none_model_is_zero() -> None:
         (
             "dem",
             {},
-            "unknown terrain-force model 'dem'; choose one of none, table, balovnev, bridge",
+            "unknown terrain-force model 'dem'; choose one of none, table, balovnev, yade, bridge",
         ),
         ("bridge", {}, r"'bridge' listens on ROS topics: the simulation node creates it"),
         ("table", {"pth": "x.csv"}, "unknown 'table' model parameter"),

@@ -9,20 +9,25 @@ DEM all implement the same protocol.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
 
 FloatArray = npt.NDArray[np.float64]
 
-#: Models :func:`ow_dem_bridge.models.make_model` builds in-process (no ROS).
+#: Stateless models :func:`ow_dem_bridge.models.make_model` builds in-process (no ROS); the bridge
+#: node serves these.
 LOCAL_MODEL_NAMES: tuple[str, ...] = ("none", "table", "balovnev")
+#: The live DEM (:mod:`ow_dem_bridge.live`): a YADE process in lockstep with the simulation. Also
+#: built by ``make_model``, but it needs the simulation's clock, tool poses and terrain
+#: (:class:`LockstepModel`), so only the simulation uses it.
+LIVE_MODEL_NAME = "yade"
 #: The co-simulation model: the latest wrench the bridge node published for the tool. It listens
 #: on ROS topics, so the simulation node makes it (``remote_node.make_remote_model``).
 REMOTE_MODEL_NAME = "bridge"
 #: Every terrain-force model name (the simulation's ``~terrain_forces``).
-MODEL_NAMES: tuple[str, ...] = (*LOCAL_MODEL_NAMES, REMOTE_MODEL_NAME)
+MODEL_NAMES: tuple[str, ...] = (*LOCAL_MODEL_NAMES, LIVE_MODEL_NAME, REMOTE_MODEL_NAME)
 
 
 @dataclass(frozen=True)
@@ -36,6 +41,11 @@ class ToolState:
         progress: m, path length the tool tip has travelled below the surface in this dig.
         velocity: (3,) m/s, tool tip velocity expressed in the tool link frame.
         angular_velocity: (3,) rad/s, tool link angular velocity in the tool link frame.
+        time: s of simulation time at which the wrench will act (the start of the physics
+            step), or None when the caller has no clock (the bridge node's messages).
+        pose: (4, 4) pose of the tool link in base_link, or None when unknown.
+        digging: the simulation's terrain gives way to the tool now (the scoop in a dig phase,
+            the grinder grinding); None when unknown.
     """
 
     tool: str
@@ -44,6 +54,9 @@ class ToolState:
     progress: float
     velocity: FloatArray
     angular_velocity: FloatArray
+    time: float | None = None
+    pose: FloatArray | None = None
+    digging: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -64,4 +77,28 @@ class TerrainForceModel(Protocol):
 
     def wrench(self, state: ToolState) -> Wrench:
         """The terrain's wrench on the tool for ``state`` (zero when depth is 0)."""
+        ...
+
+
+class TerrainHeights(Protocol):
+    """The simulation's terrain as a live model reads it (``ow_sim_bullet``'s carver is one)."""
+
+    def height_at(self, x: float, y: float) -> float:
+        """m, the terrain's height (base_link z) at (x, y) m in base_link, as carved now."""
+        ...
+
+
+@runtime_checkable
+class LockstepModel(TerrainForceModel, Protocol):
+    """A model that runs beside the simulation (the live DEM): before its first wrench, the
+    simulation gives it its terrain and its physics step; every ``wrench`` then covers exactly
+    one physics step from ``state.time``, and the simulation waits for it."""
+
+    def attach(self, terrain: TerrainHeights, step_s: float) -> None:
+        """Called once by the simulation: its terrain (read when a dig starts) and its
+        physics step (s), the simulated time each ``wrench`` call advances."""
+        ...
+
+    def close(self) -> None:
+        """Stop whatever runs beside the simulation (idempotent)."""
         ...

@@ -11,7 +11,12 @@ Names and parameters (``params`` keys; units in the docs of each model):
   :class:`~ow_dem_bridge.balovnev.BalovnevParams` field as a key, plus ``grinder_table`` (CSV used
   for the grinder; default the shipped table; "" for no grinder force).
 
-The fourth name, ``"bridge"`` (the co-simulation path: the latest wrench the bridge node published
+* ``"yade"``: the live DEM (:mod:`ow_dem_bridge.live`), a YADE process in lockstep with the
+  simulation for the scoop's digs; every :class:`~ow_dem_bridge.live_config.LiveConfig` field as
+  a key, ``fallback`` and ``fallback_params`` the model for everything else (default the table).
+  Only the simulation can drive it (it calls ``attach`` with its terrain and step).
+
+The last name, ``"bridge"`` (the co-simulation path: the latest wrench the bridge node published
 for the tool), listens on ROS topics; the simulation node makes it with
 :func:`ow_dem_bridge.remote_node.make_remote_model`, and :func:`make_model` refuses it.
 """
@@ -26,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from ow_dem_bridge.api import (
+    LIVE_MODEL_NAME,
     MODEL_NAMES,
     REMOTE_MODEL_NAME,
     FloatArray,
@@ -35,6 +41,8 @@ from ow_dem_bridge.api import (
 )
 from ow_dem_bridge.balovnev import BalovnevModel, BalovnevParams
 from ow_dem_bridge.errors import ConfigError
+from ow_dem_bridge.live import LiveDemModel
+from ow_dem_bridge.live_config import LiveConfig
 from ow_dem_bridge.table import ForceTable, load_table
 
 #: The table shipped with the package (made by ``make dem-tables``).
@@ -120,7 +128,7 @@ def make_model(name: str, params: Mapping[str, Any] | None = None) -> TerrainFor
     """Build a terrain-force model by name (see the module docstring).
 
     Args:
-        name: "none", "table" or "balovnev".
+        name: "none", "table", "balovnev" or "yade".
         params: the model's parameters.
 
     Returns:
@@ -129,6 +137,7 @@ def make_model(name: str, params: Mapping[str, Any] | None = None) -> TerrainFor
     Raises:
         ConfigError: unknown name, the ROS-backed "bridge" model, or a bad parameter.
         TableError: a table cannot be loaded.
+        DemRunError: "yade" without YADE installed (the message names the Debian package).
     """
     params = dict(params or {})
     if name == "none":
@@ -150,6 +159,9 @@ def make_model(name: str, params: Mapping[str, Any] | None = None) -> TerrainFor
             table = _table_from({"path": grinder_path or ""}, "path", DEFAULT_TABLE_PATH)
             grinder = TableModel(table)
         return BalovnevModel(BalovnevParams.from_dict(params), grinder)
+    if name == LIVE_MODEL_NAME:
+        config = LiveConfig.from_dict(params)
+        return LiveDemModel(config, make_model(config.fallback, config.fallback_params))
     if name == REMOTE_MODEL_NAME:
         msg = (
             f"terrain-force model {name!r} listens on ROS topics: the simulation node creates it "

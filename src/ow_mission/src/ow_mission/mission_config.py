@@ -15,7 +15,8 @@ from typing import Any
 
 import yaml
 
-from ow_bringup.node_config import STACK_NODES
+from ow_bringup.node_config import STACK_NODES, merge
+from ow_dem_bridge.api import LIVE_MODEL_NAME, LOCAL_MODEL_NAMES
 from ow_description.description import (
     DEFAULT_GROUND_Z,
     MAX_GRIND_DEPTH,
@@ -32,6 +33,18 @@ DEFAULT_MISSION_FILE: Path = Path(__file__).resolve().parents[2] / "config" / "m
 #: m, deepest a depth of the mission may be: each is ground by the grinder and then dug out by the
 #: scoop, so the services' smaller limit holds (one source: ow_description.description).
 MAX_STEP_DEPTH = min(MAX_GRIND_DEPTH, MAX_SCOOP_DEPTH)
+
+#: The simulation's terrain-force models a mission may choose (the ``bridge`` model needs a
+#: bridge node the mission does not start).
+TERRAIN_FORCES = (*LOCAL_MODEL_NAMES, LIVE_MODEL_NAME)
+#: s (wall), the default ``step_timeout_s`` with the live DEM: a dig costs minutes of wall time.
+LIVE_DEM_STEP_TIMEOUT_S = 3600.0
+#: The live DEM's defaults under the mission's ``node_params`` (the user's go on top): the arm
+#: services wait for each joint state up to 10 min of wall time (not 5 s), since the simulation
+#: waits for the DEM: a dig's first exchange may wait for a template bed to settle (first use).
+LIVE_DEM_NODE_PARAMS: dict[str, dict[str, Any]] = {
+    "arm_services": {"execution": {"joint_state_timeout_s": 600.0}}
+}
 
 #: How the mission is started.
 #: The command-line flag that makes the mission wait for its figures (``make demo``).
@@ -66,9 +79,12 @@ class MissionConfig:
         dig: "linear" or "circular", how the scoop collects spoil and sample.
         dig_length: m, length of a linear dig.
         discard: (3,) m, where the spoil is dumped (a remote part of the workspace).
-        terrain_forces: terrain-force model in the simulation ("none", "table", "balovnev").
+        terrain_forces: terrain-force model in the simulation ("none", "table", "balovnev",
+            or "yade": the live DEM for the scoop's digs, the table for the rest; docs/dem.md).
         real_time_factor: 0 runs as fast as possible, 1 paces to the wall clock.
-        step_timeout_s: s of wall time one service call may take.
+        step_timeout_s: s of wall time one service call may take (default 300 s; with
+            ``terrain_forces: yade`` :data:`LIVE_DEM_STEP_TIMEOUT_S`, and ``node_params`` gets
+            :data:`LIVE_DEM_NODE_PARAMS` under the file's own).
         output_dir: where ``<timestamp>/`` run directories go (relative to the workspace).
         renders: take headless renders of the arm at key moments.
         figures: "after_exit": the report's numbers are written before the mission exits and
@@ -144,6 +160,11 @@ class MissionConfig:
                     f"mission/node_params/{node}: no such node in the stack (nodes: "
                     f"{', '.join(nodes)}){suggest(str(node), nodes)}"
                 )
+        terrain_forces = p.string("terrain_forces", d.terrain_forces, choices=TERRAIN_FORCES)
+        step_timeout_s = d.step_timeout_s
+        if terrain_forces == LIVE_MODEL_NAME:
+            step_timeout_s = LIVE_DEM_STEP_TIMEOUT_S
+            node_params = merge(LIVE_DEM_NODE_PARAMS, node_params)
         config = cls(
             name=p.string("name", d.name),
             terrain=p.string("terrain", d.terrain),
@@ -172,10 +193,10 @@ class MissionConfig:
             dig=p.string("dig", d.dig, choices=("linear", "circular")),
             dig_length=p.number("dig_length", d.dig_length, low=0.01, high=MAX_LENGTH, unit="m"),
             discard=(discard[0], discard[1], discard[2]),
-            terrain_forces=p.string("terrain_forces", d.terrain_forces),
+            terrain_forces=terrain_forces,
             real_time_factor=p.number("real_time_factor", d.real_time_factor, low=0.0, high=100.0),
             step_timeout_s=p.number(
-                "step_timeout_s", d.step_timeout_s, low=1.0, high=3600.0, unit="s"
+                "step_timeout_s", step_timeout_s, low=1.0, high=3600.0, unit="s"
             ),
             output_dir=p.string("output_dir", d.output_dir),
             renders=p.boolean("renders", d.renders),

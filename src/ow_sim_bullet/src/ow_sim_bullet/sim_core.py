@@ -31,7 +31,8 @@ import numpy as np
 import pinocchio as pin
 import pybullet as pb
 
-from ow_dem_bridge.api import TerrainForceModel
+from ow_dem_bridge.api import LockstepModel, TerrainForceModel
+from ow_dem_bridge.errors import DemRunError
 from ow_dem_bridge.models import make_model
 from ow_description.description import ARM_JOINTS, TERRAIN_CONTACT_LINKS, URDF_PATH
 from ow_description.terrain import HeightMap
@@ -161,6 +162,8 @@ class BulletSim:
             for tool, index in tool_links.items()
         }
         self.carver = TerrainCarver(heightmap, config, cutters, self._make_surface)
+        if isinstance(force_model, LockstepModel):  # the live DEM: this terrain, this step
+            force_model.attach(self.carver, self.dt)
         self.forces = ToolForces(tool_links)
         self.tracker = ToolTracker(
             model,
@@ -382,7 +385,10 @@ class BulletSim:
         if self.force_model is not None:
             # The sample made below holds these very arrays: its snapshots reuse the frames.
             self.tracker.place(q, v)
-            model_torque = self.tracker.apply_model(q, self.time, self.force_model)
+            try:
+                model_torque = self.tracker.apply_model(q, self.time, self.force_model)
+            except DemRunError:  # the live DEM failed mid-dig and logged why: this step has no
+                model_torque = None  # model wrench, the rest of the dig the model's fallback
             if model_torque is not None:
                 external = model_torque if external is None else external + model_torque
         effort, damping = self.controller.control(q, v, v_set, external)

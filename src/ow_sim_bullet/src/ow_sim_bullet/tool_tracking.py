@@ -400,6 +400,9 @@ class ToolTracker:
             progress=track.progress,
             velocity=rotation_t @ tip_velocity,
             angular_velocity=rotation_t @ angular,
+            time=now,
+            pose=np.asarray(X_base_link.homogeneous),
+            digging=self.digs(tool),
         )
         return track.state
 
