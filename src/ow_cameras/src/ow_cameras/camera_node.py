@@ -10,7 +10,6 @@ import time
 from typing import Any
 
 import rospy
-import tf2_ros
 from sensor_msgs.msg import CameraInfo, Image, JointState, PointCloud2
 from std_msgs.msg import Empty, Float64
 
@@ -28,6 +27,7 @@ from ow_msgs.msg import FaultChange
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_power.loads import LOADS_TOPIC
 from ow_runtime.action_server import SimpleActionServer
+from ow_runtime.latched import latched_publisher, static_transform_broadcaster
 from ow_runtime.names import EVERY_MESSAGE, JOINT_STATES, SYSTEM_FAULTS_STATUS, TERRAIN_TOPIC
 from ow_runtime.node import init_node, spin
 from ow_runtime.status_timer import share_status_timer
@@ -150,8 +150,8 @@ class CameraNode:
                 (protocol.POINTS2, PointCloud2),
             )
         }
-        self._load = rospy.Publisher(LOADS_TOPIC, Float64, queue_size=10, latch=True)
-        self._static = tf2_ros.StaticTransformBroadcaster()
+        self._load = latched_publisher(LOADS_TOPIC, Float64, queue_size=10)
+        self._static = static_transform_broadcaster()
         stamp = rospy.Time.now()
         self._static.sendTransform(
             [transform_msg(parent, child, X, stamp) for parent, child, X in FIXED_FRAMES]

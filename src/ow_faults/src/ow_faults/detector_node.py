@@ -18,6 +18,7 @@ from ow_faults.listener_node import FaultsListener
 from ow_faults.stream_order import PacingStream
 from ow_msgs.msg import JointStatesFlag
 from ow_runtime.action_server import ActionServer
+from ow_runtime.latched import latched_publisher
 from ow_runtime.names import (
     ARM_ACTIONS,
     ARM_END_EFFECTOR_FORCE_TORQUE,
@@ -94,7 +95,7 @@ class DetectorNode:
         self._lock = threading.Lock()
         self._flags = PacingStream()  # the simulation's lock flags pace the other inputs
         self._publishers = [
-            (rospy.Publisher(topic, cls, queue_size=10, latch=True), cls, field)
+            (latched_publisher(topic, cls, queue_size=10), cls, field)
             for topic, cls, field in OUTPUTS
         ]
         self._publish(self.detector.status, rospy.Time(0))

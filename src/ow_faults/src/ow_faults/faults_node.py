@@ -15,6 +15,7 @@ from ow_faults.protocol import CHANGES_TOPIC
 from ow_faults.server_node import CheckedServer
 from ow_msgs.msg import FaultChange
 from ow_msgs.srv import LockstepStatus
+from ow_runtime.latched import latched_publisher
 from ow_runtime.names import FAULTS, STATUS_SERVICE
 from ow_runtime.node import init_node, spin
 
@@ -55,7 +56,7 @@ class FaultsServer:
 
         self.faults = faults
         self.version = 0
-        self._changes = rospy.Publisher(CHANGES_TOPIC, FaultChange, queue_size=100, latch=True)
+        self._changes = latched_publisher(CHANGES_TOPIC, FaultChange, queue_size=100)
         self.server = CheckedServer(
             FaultsConfig, self._check, self._apply, namespace=namespace, label="faults"
         )

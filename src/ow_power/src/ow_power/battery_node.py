@@ -22,6 +22,7 @@ from ow_power.battery_feed import LoadFeed
 from ow_power.battery_messages import battery_messages
 from ow_power.config import BatteryConfig
 from ow_power.errors import ConfigError, PowerError
+from ow_runtime.latched import latched_publisher
 from ow_runtime.names import EVERY_MESSAGE
 from ow_runtime.node import init_node, spin
 from owl_msgs.msg import BatteryRemainingUsefulLife, BatteryStateOfCharge, BatteryTemperature
@@ -108,7 +109,7 @@ class BatteryNode:
         with warnings.catch_warnings():  # rospy warns of queue_size None
             warnings.simplefilter("ignore", SyntaxWarning)
             self._publishers = [
-                rospy.Publisher(topic, msg_type, queue_size=PUBLISH_QUEUE, latch=True)
+                latched_publisher(topic, msg_type, queue_size=PUBLISH_QUEUE)
                 for topic, msg_type in (
                     ("battery_state_of_charge", BatteryStateOfCharge),
                     ("battery_remaining_useful_life", BatteryRemainingUsefulLife),

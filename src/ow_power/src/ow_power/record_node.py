@@ -18,6 +18,7 @@ from ow_msgs.srv import RecorderProgress, RecorderProgressRequest, RecorderProgr
 from ow_power.bagwriter import SplitBagWriter, record_time_ns
 from ow_power.config import RecorderConfig
 from ow_power.errors import ConfigError, RecorderError
+from ow_runtime.latched import latched_publisher
 from ow_runtime.node import init_node, signal_shutdown
 
 #: s of wall time between two ``~status`` messages.
@@ -71,7 +72,7 @@ class RecorderNode:
         Raises:
             RecorderError: the bag directory cannot be created.
         """
-        self._status = rospy.Publisher("~status", String, queue_size=1, latch=True)
+        self._status = latched_publisher("~status", String, queue_size=1)
         self._messages = 0
         self._progress: dict[str, tuple[int, int]] = {}  # topic -> (newest ns, messages)
         self._bags = SplitBagWriter(

@@ -12,6 +12,7 @@ from ow_msgs.msg import RegolithBudget
 from ow_msgs.srv import IngestSample, IngestSampleResponse
 from ow_regolith.conversions import bulk_excavation
 from ow_regolith.materials import Bulk
+from ow_runtime.latched import latched_publisher
 from ow_runtime.names import MATERIAL_INGESTED, REGOLITH_BUDGET, SIM_INGEST_SAMPLE
 from ow_sim_bullet import conversions
 from ow_sim_bullet.errors import SimError
@@ -54,8 +55,8 @@ class RegolithServer:
     def __init__(self, runner: SimRunner, outputs: SimOutputs) -> None:
         self._runner = runner
         self._outputs = outputs
-        self._ingested = rospy.Publisher(
-            MATERIAL_INGESTED, BulkExcavation, queue_size=_INGESTED_QUEUE, latch=True
+        self._ingested = latched_publisher(
+            MATERIAL_INGESTED, BulkExcavation, queue_size=_INGESTED_QUEUE
         )
         rospy.Service(SIM_INGEST_SAMPLE, IngestSample, self._on_ingest)
 
@@ -84,4 +85,4 @@ class RegolithServer:
 
 def budget_publisher() -> rospy.Publisher:
     """The latched publisher of ``/regolith/budget`` (state: a slow subscriber gets the newest)."""
-    return rospy.Publisher(REGOLITH_BUDGET, RegolithBudget, queue_size=1, latch=True)
+    return latched_publisher(REGOLITH_BUDGET, RegolithBudget, queue_size=1)

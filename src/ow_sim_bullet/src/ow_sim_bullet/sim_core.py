@@ -270,7 +270,9 @@ class BulletSim:
     # ------------------------------------------------------------------ commands
     def reset(self) -> None:
         """Put the joints at the initial positions, at rest, holding them; clear trajectories
-        and the tools' forces and digs (see :meth:`JointController.reset`)."""
+        and the tools' forces and digs (see :meth:`JointController.reset`). The carve updates
+        start again with the next step, as on a new simulation: what follows a reset does not
+        depend on how many steps came before it."""
         q0 = np.array([self.config.initial_positions[j] for j in self.names])
         for index, position in zip(self._bullet_index, q0, strict=True):
             pb.resetJointState(self.robot, index, position, 0.0, physicsClientId=self.client)
@@ -286,6 +288,7 @@ class BulletSim:
             self.controller.setpoint,
         )
         self.tracker.reset()
+        self._next_carve = self.time
 
     def position(self, joint: str) -> float:
         """rad, where ``joint`` is now (after the last step).

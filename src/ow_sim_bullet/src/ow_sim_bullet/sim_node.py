@@ -8,7 +8,6 @@ from typing import Any
 
 import rospy
 import rospy.impl.simtime
-import tf2_ros
 from std_srvs.srv import Trigger, TriggerResponse
 
 from ow_dem_bridge.api import REMOTE_MODEL_NAME
@@ -18,6 +17,7 @@ from ow_description.terrain import HeightMap
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_msgs.msg import ScoopDigPhase
 from ow_msgs.srv import SetTerrain, SetTerrainResponse, StepSimulation, StepSimulationResponse
+from ow_runtime.latched import latched_publisher, static_transform_broadcaster
 from ow_runtime.node import init_node, spin
 from ow_sim_bullet import conversions, outputs, wire
 from ow_sim_bullet.commands_node import SimCommands
@@ -103,17 +103,15 @@ class SimNode:
         # message at tens of times real time. A subscriber that cannot keep up slows the
         # simulation down instead of losing messages.
         publishers = {topic: _batch_publisher(topic, cls) for topic, cls in outputs.WIRE_TOPICS}
-        terrain = rospy.Publisher("~terrain", HeightMapMsg, queue_size=1, latch=True)
-        self._dig_phase = rospy.Publisher(
-            outputs.DIG_PHASE_TOPIC, ScoopDigPhase, queue_size=1, latch=True
-        )
+        terrain = latched_publisher("~terrain", HeightMapMsg, queue_size=1)
+        self._dig_phase = latched_publisher(outputs.DIG_PHASE_TOPIC, ScoopDigPhase, queue_size=1)
         # With /use_sim_time rospy subscribes every node to /clock, this one too. The sim sets its
         # rospy time itself instead: a thread receiving /clock would take the GIL at every tick.
         own_clock = getattr(rospy.impl.simtime, "_clock_sub", None)
         if own_clock is not None:
             own_clock.unregister()
         frames = conversions.joint_frames(URDF_PATH.read_text())
-        self._static_tf = tf2_ros.StaticTransformBroadcaster()
+        self._static_tf = static_transform_broadcaster()
         self._static_tf.sendTransform(
             [conversions.transform_msg(f, 0.0, 0.0) for f in frames if f.axis is None]
         )

@@ -9,7 +9,6 @@ from typing import Any
 
 import numpy as np
 import rospy
-import tf2_ros
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
@@ -20,6 +19,7 @@ from ow_description.description import BASE_FRAME, URDF_PATH
 from ow_description.errors import TerrainError
 from ow_description.model import LanderModel
 from ow_msgs.msg import GuardedMoveResult, HeightMap
+from ow_runtime.latched import latched_publisher, static_transform_broadcaster
 from ow_runtime.names import (
     GUARDED_MOVE_RESULT,
     JOINT_STATES,
@@ -82,17 +82,17 @@ class VizNode:
         self._q_rest = np.zeros(self.model.nq)
         self._lock = threading.Lock()
         rospy.set_param(ROBOT_DESCRIPTION, urdf)
-        self._description = rospy.Publisher(ROBOT_DESCRIPTION, String, queue_size=1, latch=True)
+        self._description = latched_publisher(ROBOT_DESCRIPTION, String, queue_size=1)
         self._description.publish(String(data=urdf))
-        self._static = tf2_ros.StaticTransformBroadcaster()
+        self._static = static_transform_broadcaster()
         self._static.sendTransform(
             static_transform(
                 config.world_frame, BASE_FRAME, config.base_link_in_world, rospy.Time.now()
             )
         )
-        self._terrain = rospy.Publisher(f"{namespace}terrain", Marker, queue_size=1, latch=True)
-        self._path = rospy.Publisher(f"{namespace}tool_path", Marker, queue_size=1, latch=True)
-        self._ground = rospy.Publisher(f"{namespace}ground_point", Marker, queue_size=1, latch=True)
+        self._terrain = latched_publisher(f"{namespace}terrain", Marker, queue_size=1)
+        self._path = latched_publisher(f"{namespace}tool_path", Marker, queue_size=1)
+        self._ground = latched_publisher(f"{namespace}ground_point", Marker, queue_size=1)
         rospy.Subscriber(JOINT_STATES, JointState, self._on_joints, queue_size=joint_queue_size)
         rospy.Subscriber(TERRAIN_TOPIC, HeightMap, self._on_terrain, queue_size=1)
         rospy.Subscriber(TRAJECTORY_TOPIC, JointTrajectory, self._on_trajectory, queue_size=10)

@@ -29,6 +29,7 @@ from ow_lander.execution.monitor import (
 from ow_lander.fault_watch_node import FaultWatch
 from ow_msgs.msg import GuardedMoveResult
 from ow_runtime.clock_client import TrajectoryDeliveryError
+from ow_runtime.latched import latched_publisher
 from ow_runtime.names import GUARDED_MOVE_RESULT
 
 
@@ -58,9 +59,7 @@ class ArmExecutor(ArmObserver):
         self._stopped = threading.Event()
         self.delivery = TrajectoryDelivery(config, self)
         self._sim_clock = self.delivery.sim_clock
-        self.result_pub = rospy.Publisher(
-            GUARDED_MOVE_RESULT, GuardedMoveResult, queue_size=10, latch=True
-        )
+        self.result_pub = latched_publisher(GUARDED_MOVE_RESULT, GuardedMoveResult, queue_size=10)
         self.outlet = DecisionOutlet(config)
         self.faults = FaultWatch(self._on_fault_status)
         self._flags = LockFlags() if config.lockstep else None

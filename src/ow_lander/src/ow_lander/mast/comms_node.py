@@ -12,6 +12,7 @@ from std_msgs.msg import Float64
 from ow_lander.msg import ActivateCommsAction, ActivateCommsResult
 from ow_power.loads import COMMS_POWER_W, LOADS_TOPIC
 from ow_runtime.action_server import SimpleActionServer
+from ow_runtime.latched import latched_publisher
 
 #: The status text of every ActivateComms goal that ran its duration (OceanWATERS').
 SUCCEEDED_TEXT = "Communication uplink/downlink succeeded."
@@ -33,7 +34,7 @@ class CommsServer:
     """
 
     def __init__(self) -> None:
-        self._load = rospy.Publisher(LOADS_TOPIC, Float64, queue_size=10, latch=True)
+        self._load = latched_publisher(LOADS_TOPIC, Float64, queue_size=10)
         self._load.publish(Float64(0.0))
         self.server = SimpleActionServer("ActivateComms", ActivateCommsAction, self._on_goal)
         self.server.start()
