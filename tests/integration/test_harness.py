@@ -4,6 +4,7 @@ import os
 import signal
 import socket
 import subprocess
+import sys
 import xmlrpc.client
 from pathlib import Path
 
@@ -356,3 +357,34 @@ def test_a_master_in_process_on_a_taken_port_fails_naming_it(tmp_path):
         master = RosMaster(tmp_path, port=port, in_process=True)
         with pytest.raises(HarnessError, match=f"rosmaster on port {port} could not start"):
             master.start(timeout_s=10.0)
+
+
+FAILING_MODULE = """
+def test_fails_with_a_node_running(ros_stack):
+    ros_stack.start_node(
+        "rosout", "rosout", name="tail_rosout", wait_for_services=["/tail_rosout/get_loggers"]
+    )
+    assert False, "on purpose"
+
+
+def test_passes(ros_stack):
+    pass
+"""
+
+
+def test_a_failed_test_reports_the_end_of_its_modules_node_logs(tmp_path):
+    """A failure under a loaded machine is rarely seen twice, and the node logs are gone with
+    the session's temporary directory: the report of a failed test carries their ends."""
+    (tmp_path / "conftest.py").write_text('pytest_plugins = ["ow_bringup.testing"]\n')
+    (tmp_path / "test_failing.py").write_text(FAILING_MODULE)
+    run = subprocess.run(
+        [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+        check=False,
+    )
+    assert run.returncode == 1, run.stdout + run.stderr
+    assert "1 failed, 1 passed" in run.stdout
+    assert run.stdout.count("node tail_rosout (running), log end") == 1, run.stdout

@@ -47,7 +47,7 @@ from __future__ import annotations
 import contextlib
 import os
 import time
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Generator, Iterable, Iterator, Mapping
 from typing import Any
 
 import pytest
@@ -117,12 +117,42 @@ def module_stack(master: RosMaster) -> Iterator[RosStack]:
     """
     params = master.param_snapshot()
     stack = RosStack(master)
+    _STACKS.append(stack)
     try:
         yield stack
     finally:
+        _STACKS.remove(stack)
         stack.shutdown()
         unregister_endpoints()
         master.restore_params(params)
+
+
+#: the stacks of the modules running now (one: a pytest process runs one module at a time).
+_STACKS: list[RosStack] = []
+
+#: lines of each node's log a failed test's report ends with.
+LOG_TAIL_LINES = 30
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(
+    item: pytest.Item, call: pytest.CallInfo[None]
+) -> Generator[None, Any, None]:
+    """A test that fails while its module's nodes run reports the end of each node's log
+    (whether the node still runs, and its last lines): the logs live in the session's
+    temporary directory, gone when a later session ends, and a failure under a loaded CI
+    machine is rarely seen twice."""
+    outcome = yield
+    report = outcome.get_result()
+    if not report.failed or not _STACKS:
+        return
+    for node in list(_STACKS[-1].nodes):
+        try:
+            lines = node.log().splitlines()[-LOG_TAIL_LINES:]
+        except OSError as error:
+            lines = [f"(log unreadable: {error})"]
+        state = "running" if node.alive() else f"exited {node.proc.returncode}"
+        report.sections.append((f"node {node.name} ({state}), log end", "\n".join(lines)))
 
 
 @pytest.fixture(scope="module")
