@@ -72,26 +72,49 @@ def _own_shared_mb() -> float:
     return total_kb / 1024
 
 
-def node_cpu(mission_pid: int, seen: dict[tuple[int, int], tuple[str, float, float]]) -> float:
+def node_cpu(
+    mission_pid: int,
+    seen: dict[tuple[int, int], tuple[str, float, float]],
+    ours: set[int],
+    run_root: str,
+) -> float:
     """Update ``seen`` ((pid, start time) -> (node, CPU s, peak resident MB)) from /proc: the
     mission, every ROS node (a process with ``__name:=``), the master and the mission's other
     children (the report's forked renderers, ``mission_workers``) and the process drawing the
-    figures after the mission exits, with its renderers (``figures``). Returns MB, the sum of
-    their PSS now."""
+    figures after the mission exits, with its renderers (``figures``). Only the mission's own
+    processes count: ``ours`` (pids) grows by every process whose parent is in it, and the
+    figures' process is known by its run directory under ``run_root`` too (the mission may exit
+    before it is seen, and it is then no child of it): on a machine shared with other stacks
+    (a test suite, another mission), theirs are left out. Returns MB, the sum of their PSS now."""
     tick = os.sysconf("SC_CLK_TCK")
     pss_mb = 0.0
+    stats: dict[int, list[str]] = {}
     for entry in os.listdir("/proc"):
         if not entry.isdigit():
             continue
         try:
+            stats[int(entry)] = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+    grew = True
+    while grew:  # to a fixed point: a child's pid may come before its parent's (pids wrap)
+        known = len(ours)
+        ours.update(pid for pid, stat in stats.items() if int(stat[1]) in ours)
+        grew = len(ours) > known
+    for pid, stat in stats.items():
+        entry = str(pid)
+        try:
             raw = Path(f"/proc/{entry}/cmdline").read_bytes().split(b"\0")
-            stat = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
             status = Path(f"/proc/{entry}/status").read_text().splitlines()
         except OSError:
             continue
         args = [a.decode(errors="replace") for a in raw if a]
         if not args:  # an exited process not yet waited for: nothing more to read
             continue
+        if pid not in ours:
+            if not ("ow_mission.figures" in args and any(run_root in a for a in args)):
+                continue
+            ours.add(pid)  # the figures' process: its renderers are its children
         names = [a.split(":=", 1)[1] for a in args if a.startswith("__name:=")]
         if int(entry) == mission_pid:
             names = ["mission"]
@@ -125,19 +148,21 @@ def main() -> int:
         path.write_text(yaml.safe_dump(mission))
         started = time.monotonic()
         seen: dict[tuple[int, int], tuple[str, float, float]] = {}
+        ours: set[int] = set()
         with (
             tempfile.TemporaryFile("w+") as out,
             subprocess.Popen(
                 ["rosrun", "ow_mission", "mission", str(path)], stdout=out, stderr=out, text=True
             ) as proc,
         ):
+            ours.add(proc.pid)  # rosrun execs the mission: the same process
             peak_pss_mb = peak_pss_at_s = 0.0
 
             def sample_while(running: Callable[[], bool]) -> float:
                 """Read the processes every CPU_POLL_S while ``running()``; s from rosrun."""
                 nonlocal peak_pss_mb, peak_pss_at_s
                 while running():
-                    pss_mb = node_cpu(proc.pid, seen) + _own_shared_mb()
+                    pss_mb = node_cpu(proc.pid, seen, ours, tmp) + _own_shared_mb()
                     if pss_mb > peak_pss_mb:
                         peak_pss_mb, peak_pss_at_s = pss_mb, time.monotonic() - started
                     time.sleep(CPU_POLL_S)

@@ -11,13 +11,20 @@ A second mission cannot find the ground and must stop there, keeping what it rec
 default mission runs twice at once (renders on, as ``make demo``), and the two must be the same
 run (issue 16). The report's checks: every image it links exists, its energies are the power
 plot's, its figures say what the run did. Each mission runs once per module; the checks only
-read its run directory. The mission through OceanWATERS' actions (``interface: actions``) is
-test_campaign's: its missions run through them.
+read its run directory. The first default run is :func:`run_once`'s: a module of another
+pytest-xdist worker that runs the same file (test_mission_sample) reads the same run instead of
+making its own, and the second run is then made beside whatever else that worker runs. The
+mission through OceanWATERS' actions (``interface: actions``) is test_campaign's: its missions run
+through them.
 """
 
+import fcntl
+import hashlib
 import json
 import math
+import os
 import subprocess
+import tempfile
 import xml.etree.ElementTree as ET
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -113,6 +120,43 @@ def _run_mission(directory: Path, **keys: Any) -> Run:
     return Run(proc.returncode, output, runs[0], report, at_exit)
 
 
+def _shared_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A directory every pytest-xdist worker of this session sees: the base temporary
+    directory's parent under xdist (each worker's base is ``popen-gw<n>`` in it), else the
+    base itself."""
+    base = tmp_path_factory.getbasetemp()
+    return base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+
+
+def run_once(tmp_path_factory: pytest.TempPathFactory, **keys: Any) -> Run:
+    """:func:`_run_mission` of ``keys``, made once per test session: every module asking for
+    the same mission file (but its ``output_dir``) gets the same run, made by the first to ask;
+    a worker asking while another makes it waits for it (a lock file). The checks only read a
+    run directory, so they may share one. A run that raised (a timeout) is made again by the
+    next to ask."""
+    digest = hashlib.sha256(yaml.safe_dump(keys, sort_keys=True).encode()).hexdigest()[:16]
+    root = _shared_dir(tmp_path_factory) / "mission_runs"
+    root.mkdir(exist_ok=True)
+    record = root / f"{digest}.json"
+    with (root / f"{digest}.lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if record.is_file():
+            saved = json.loads(record.read_text())
+            run_dir = Path(saved["run_dir"])
+            report = json.loads((run_dir / "report.json").read_text())
+            return Run(saved["returncode"], saved["output"], run_dir, report, saved["at_exit"])
+        directory = Path(tempfile.mkdtemp(prefix=f"{digest}-", dir=root))
+        run = _run_mission(directory, **keys)
+        saved = {
+            "returncode": run.returncode,
+            "output": run.output,
+            "run_dir": str(run.run_dir),
+            "at_exit": run.at_exit,
+        }
+        record.write_text(json.dumps(saved))
+        return run
+
+
 def _messages(
     bags: list[Path], topic: str, start_s: float | None = None, end_s: float | None = None
 ):
@@ -135,17 +179,21 @@ def _default_mission() -> dict[str, Any]:
     return keys
 
 
+def demo_mission() -> dict[str, Any]:
+    """The default mission as ``make demo`` runs it (renders on): the session's shared run."""
+    return {**_default_mission(), "renders": True}
+
+
 @pytest.fixture(scope="module")
 def pair(tmp_path_factory):
-    """The default mission run twice at once from the same file, renders on as ``make demo``
-    makes them (under make test the other worker's tests run beside both)."""
-    keys = {**_default_mission(), "renders": True}
+    """The default mission run twice from the same file, renders on as ``make demo`` makes
+    them: the session's run of it (:func:`run_once`) and one more, made at once unless another
+    module made the first already (under make test the other worker's tests run beside both)."""
+    keys = demo_mission()
     with ThreadPoolExecutor(max_workers=2) as pool:
-        runs = [
-            pool.submit(_run_mission, tmp_path_factory.mktemp(name), **keys)
-            for name in ("mission", "again")
-        ]
-        return runs[0].result(), runs[1].result()
+        first = pool.submit(run_once, tmp_path_factory, **keys)
+        again = pool.submit(_run_mission, tmp_path_factory.mktemp("again"), **keys)
+        return first.result(), again.result()
 
 
 @pytest.fixture(scope="module")
@@ -422,8 +470,10 @@ def test_a_run_is_a_function_of_its_mission_file(pair, no_ground):
     assert {k: (v, second.get(k)) for k, v in first.items() if second.get(k) != v} == {}
     assert first.keys() == second.keys()
     # Read with the ROS bag API here; run_compare (rosbags) adds the wrenches, battery, faults.
-    for topic in ("/joint_states", "/power", "/arm_end_effector_force_torque"):
-        a, b = _raw(mission.bags, topic), _raw(again.bags, topic)
+    topics = ("/joint_states", "/power", "/arm_end_effector_force_torque")
+    raw_mission, raw_again = _raw(mission.bags, topics), _raw(again.bags, topics)
+    for topic in topics:
+        a, b = raw_mission[topic], raw_again[topic]
         assert len(a) > 10000, topic  # 100 Hz over the mission's ~330 s (50 Hz F/T)
         differ = next((i for i, (x, y) in enumerate(zip(a, b, strict=False)) if x != y), None)
         assert (len(a), differ) == (len(b), None), f"{topic}: first difference at message {differ}"
@@ -480,12 +530,14 @@ def test_the_capture_is_a_function_of_the_mission_file(pair):
         assert (mission.run_dir / name).read_bytes() == (again.run_dir / name).read_bytes(), name
 
 
-def _raw(bags: list[Path], topic: str) -> list[bytes]:
-    """Every message of ``topic`` as recorded, serialised (header and all), in order."""
-    data = []
+def _raw(bags: list[Path], topics: tuple[str, ...]) -> dict[str, list[bytes]]:
+    """Every message of each of ``topics`` as recorded, serialised (header and all), in order:
+    one pass over the bags (each topic's messages keep their order within it)."""
+    data: dict[str, list[bytes]] = {topic: [] for topic in topics}
     for path in bags:
         with rosbag.Bag(str(path)) as bag:
-            data += [raw[1] for _, raw, _ in bag.read_messages(topics=[topic], raw=True)]
+            for topic, raw, _ in bag.read_messages(topics=list(topics), raw=True):
+                data[topic].append(raw[1])
     return data
 
 

@@ -15,7 +15,7 @@ regolith budget.
 from concurrent.futures import ThreadPoolExecutor
 
 import pytest
-from test_mission import Run, _default_mission, _messages, _run_mission
+from test_mission import Run, _default_mission, _messages, _run_mission, demo_mission, run_once
 
 from ow_runtime.names import MATERIAL_INGESTED, REGOLITH_BUDGET
 
@@ -27,16 +27,14 @@ SHARE_MARGIN = 0.1
 
 @pytest.fixture(scope="module")
 def missions(tmp_path_factory) -> tuple[Run, Run]:
-    """(the default mission, the same without the first trench), run at once."""
-    default = _default_mission()
+    """(the default mission as ``make demo`` runs it, the same without the first trench), run
+    at once. The default run is the session's (test_mission's :func:`run_once`): whichever of
+    the two modules asks first makes it, and the other reads it."""
+    surface = {**_default_mission(), "name": "no first grind", "trench_depth": 0.0}
     with ThreadPoolExecutor(max_workers=2) as pool:
         runs = [
-            pool.submit(_run_mission, tmp_path_factory.mktemp("default"), **default),
-            pool.submit(
-                _run_mission,
-                tmp_path_factory.mktemp("surface"),
-                **{**default, "name": "no first grind", "trench_depth": 0.0},
-            ),
+            pool.submit(run_once, tmp_path_factory, **demo_mission()),
+            pool.submit(_run_mission, tmp_path_factory.mktemp("surface"), **surface),
         ]
         return runs[0].result(), runs[1].result()
 

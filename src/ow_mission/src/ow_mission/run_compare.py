@@ -84,26 +84,39 @@ def report_numbers(report: Any, path: str = "") -> dict[str, float]:
 
 
 def raw_messages(run_dir: Path, topic: str) -> list[bytes]:
-    """Every message of ``topic`` in the run's bags, serialised as recorded, in order, with a
-    header's ``seq`` set to 0. rospy numbers a publisher's messages per write and sends a
-    latched message again to each new subscriber, each time with the next number: the ``seq``
-    a recorder gets depends on the order the subscribers connected in, not on the run. A
-    latched topic's last message is repeated at the start of each bag file (each file stands
-    alone), and where a file starts depends on which topic's message came first: such a repeat
-    (the same bytes as the message before it) is left out."""
+    """Every message of ``topic`` in the run's bags, as :func:`raw_topics` gives it."""
+    return raw_topics(run_dir, [topic])[topic]
+
+
+def raw_topics(run_dir: Path, topics: Iterable[str]) -> dict[str, list[bytes]]:
+    """Every message of each of ``topics`` in the run's bags, serialised as recorded, in order,
+    with a header's ``seq`` set to 0, read in one pass over the bags (each pass reads every
+    chunk: the topics are interleaved in them). rospy numbers a publisher's messages per write
+    and sends a latched message again to each new subscriber, each time with the next number:
+    the ``seq`` a recorder gets depends on the order the subscribers connected in, not on the
+    run. A latched topic's last message is repeated at the start of each bag file (each file
+    stands alone), and where a file starts depends on which topic's message came first: such a
+    repeat (the same bytes as the topic's message before it) is left out.
+
+    A topic's messages come in the same order as when it is read alone: the readers merge their
+    index entries by (time, chunk, offset) and the files in one fixed order, whichever
+    connections are asked for.
+    """
+    messages: dict[str, list[bytes]] = {topic: [] for topic in topics}
     bags = sorted((run_dir / "bags").glob("*.bag"))
     if not bags:
-        return []
-    messages: list[bytes] = []
+        return messages
     with AnyReader(bags) as reader:
-        connections = [c for c in reader.connections if c.topic == topic]
+        connections = [c for c in reader.connections if c.topic in messages]
+        headed = {id(c): starts_with_header(c.msgdef.data) for c in connections}
         for connection, _, raw in reader.messages(connections=connections):
             data = bytes(raw)
-            if starts_with_header(connection.msgdef.data):
+            if headed[id(connection)]:
                 data = bytes(4) + data[4:]  # the header's uint32 seq comes first
+            kept = messages[connection.topic]
             latched = getattr(connection.ext, "latching", 0)
-            if not (latched and messages and messages[-1] == data):
-                messages.append(data)
+            if not (latched and kept and kept[-1] == data):
+                kept.append(data)
     return messages
 
 
@@ -115,8 +128,10 @@ def differences(a: Path, b: Path, topics: Iterable[str] = TOPICS) -> list[str]:
     for key in sorted(numbers_a.keys() | numbers_b.keys()):
         if numbers_a.get(key) != numbers_b.get(key):
             found.append(f"report{key}: {numbers_a.get(key)!r} != {numbers_b.get(key)!r}")
+    topics = list(dict.fromkeys(topics))
+    raw_a, raw_b = raw_topics(a, topics), raw_topics(b, topics)
     for topic in topics:
-        messages_a, messages_b = raw_messages(a, topic), raw_messages(b, topic)
+        messages_a, messages_b = raw_a[topic], raw_b[topic]
         first = next(
             (i for i, (x, y) in enumerate(zip(messages_a, messages_b, strict=False)) if x != y),
             None,
