@@ -427,7 +427,7 @@ def test_the_numbers_written_before_the_figures_are_the_reports(tmp_path):
     assert first["figures_pending"] is True
     assert first["figures"] == {}
     # What the synthetic bags cannot show, as ever: no regolith budget, no battery.
-    assert list(first["figure_notes"]) == ["sample", "battery"]
+    assert list(first["figure_notes"]) == ["regolith", "sample", "battery"]
     assert list(tmp_path.glob("*.png")) == []
     markdown = (tmp_path / "report.md").read_text()
     assert image_links(markdown) == []

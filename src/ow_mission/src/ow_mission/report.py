@@ -3,7 +3,8 @@
 :func:`write_run_report` takes the run's ``report.json`` document (the steps as the mission ran
 them) and its ``bags/``, and writes: ``power.png`` (power with the steps' signed and
 absolute-value mechanical energies), ``trench_profile.png`` (terrain before and after along and
-across the trench, with the requested depths), ``guarded_move.png`` (the ground detector, the
+across the trench, with the requested depths), ``regolith.png`` (where the excavated regolith is
+over the mission: :mod:`ow_mission.regolith_plot`), ``guarded_move.png`` (the ground detector, the
 paper's Figure 11), stills in ``renders/`` and ``replay.gif`` (the whole mission, animated),
 ``battery.png`` and the faults section (:mod:`ow_mission.fault_report`), the delivered sample
 (:func:`sample_summary`: volume, composition, top layer's share, the regolith budget), then
@@ -53,10 +54,6 @@ BUDGET_ACCOUNTS = ("excavated", "in_scoop", "in_dock", "ingested", "spilled", "d
 #: Processes rendering the stills and the replay: the stills in one, the replay in the other,
 #: which writes its GIF too (its frames never come to this process).
 RENDER_PROCESSES = 2
-
-#: Makes one figure from the run directory, the document, the recording and the figures so far;
-#: returns a note when it cannot.
-FigureMaker = Callable[[Path, dict[str, Any], Recording, Figures], "str | None"]
 
 
 def step_windows(document: Mapping[str, Any]) -> list[tuple[str, float, float]]:
@@ -226,6 +223,42 @@ def trench_figure(
         "and across its middle, with the requested floor (ground found - trench_depth) and the "
         "bottom grind depth below it."
     )
+    return None
+
+
+def regolith_figure(
+    run_dir: Path, document: dict[str, Any], messages: TopicMessages, figures: Figures
+) -> str | None:
+    """``regolith.png`` (when ``figures.draw``): where the excavated regolith is over the
+    mission, from the bags' ``/regolith/budget``; a note when they have none."""
+    from ow_mission.regolith_plot import plot_regolith, regolith_series
+
+    budgets = messages.get(REGOLITH_BUDGET, [])
+    if not budgets:
+        return f"no {REGOLITH_BUDGET} in the bags: no regolith figure."
+    if not figures.draw:
+        return None
+    series = regolith_series(budgets, step_windows(document))
+    plot_regolith(series, run_dir / "regolith.png")
+    closes = (
+        "equals it to the µm³ in every budget: the budget closes"
+        if series.unbalanced == 0
+        else f"does NOT equal it in {series.unbalanced} of the {len(series.t_s)} budgets"
+    )
+    figures.files["regolith"] = "regolith.png"
+    figures.captions["regolith"] = (
+        "Where the regolith the scoop excavated is over the mission, from the bags' "
+        f"{REGOLITH_BUDGET} (each budget held until the next), each step shaded: in the scoop, "
+        "in the dock, ingested, spilled and deposited stacked in cm³ (1 cm³ = 1e-6 m³), the "
+        f"excavated volume dashed (the stack's top {closes}); at the end "
+        f"{series.final_cm3('excavated'):.4g} cm³ excavated, "
+        f"{series.final_cm3('ingested'):.4g} cm³ ingested."
+    )
+    if series.layer_shares("excavated") is not None:
+        figures.captions["regolith"] += (
+            " Right: the share of the ingested sample (when there is one) and of all that was "
+            "excavated from each terrain layer, at the end."
+        )
     return None
 
 
@@ -476,9 +509,10 @@ def _figures_from_bags(
     figures: Figures,
     renders: bool,
 ) -> None:
-    """The power plot, then the figures of the replay's :class:`Recording`, in the report's
-    order. The stills and the replay are rendered by two forked processes from the start (about
-    2 and 2.5 CPU-s), alongside the other figures: this process collects them at the end.
+    """The power plot, then the figures of the replay's :class:`Recording` and the regolith
+    figure (of ``messages``' budgets), in the report's order. The stills and the replay are
+    rendered by two forked processes from the start (about 2 and 2.5 CPU-s), alongside the other
+    figures: this process collects them at the end.
     ``messages`` loses its ``/joint_states`` and ``/power`` once the recording and the power
     analysis are made from them."""
     recording: Recording | None = None
@@ -527,12 +561,13 @@ def _figures_from_bags(
         if recording is None:
             figures.notes.update(early.notes)
             return
-        makers: list[tuple[str, FigureMaker]] = [
-            ("trench_profile", trench_figure),
-            ("guarded_move", guarded_move_figure),
+        makers: list[tuple[str, Callable[[Figures], str | None]]] = [
+            ("trench_profile", functools.partial(trench_figure, run_dir, document, recording)),
+            ("regolith", functools.partial(regolith_figure, run_dir, document, messages)),
+            ("guarded_move", functools.partial(guarded_move_figure, run_dir, document, recording)),
         ]
         for role, maker in makers:
-            _attempt(figures, role, functools.partial(maker, run_dir, document, recording, figures))
+            _attempt(figures, role, functools.partial(maker, figures))
         if stills is not None:
             _attempt(figures, "stills", functools.partial(stills_figure, stills, figures))
         figures.notes.update(early.notes)
@@ -570,6 +605,7 @@ def preload(draw: bool = True) -> None:
     import pybullet  # noqa: F401
 
     import ow_mission.plots
+    import ow_mission.regolith_plot
     import ow_mission.render  # noqa: F401
 
 
