@@ -3,6 +3,7 @@ the budget's publisher, the ingestion service and its ground truth."""
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import rospy
@@ -84,5 +85,10 @@ class RegolithServer:
 
 
 def budget_publisher() -> rospy.Publisher:
-    """The latched publisher of ``/regolith/budget`` (state: a slow subscriber gets the newest)."""
-    return latched_publisher(REGOLITH_BUDGET, RegolithBudget, queue_size=1)
+    """The latched publisher of ``/regolith/budget``, writing on the simulation's thread: a
+    subscriber that lags slows the simulation down instead of losing budgets (with rospy's
+    queue of one, a loaded machine's recorder lost some, and two runs of one mission file had
+    different streams)."""
+    with warnings.catch_warnings():  # rospy warns of queue_size None
+        warnings.simplefilter("ignore", SyntaxWarning)
+        return latched_publisher(REGOLITH_BUDGET, RegolithBudget, queue_size=None)
