@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from ow_dem_bridge.api import ToolState, Wrench
+from ow_dem_bridge.comparison import COMPONENTS, nrmsd
 from ow_dem_bridge.live import LiveDemModel
 from ow_dem_bridge.models import make_model
 from ow_description.description import DEFAULT_GROUND_Z, UNSTOWED
@@ -49,7 +50,6 @@ from ow_sim_bullet.trajectory import JointTrajectory
 ROOT = Path(__file__).resolve().parents[1]
 DIG = {"x": 1.65, "y": 0.0, "depth": 0.05, "length": 0.2, "ground_position": DEFAULT_GROUND_Z}
 COMPARED = ("table", "balovnev")
-COMPONENTS = ("Fx", "Fy", "Fz")
 
 
 def emit(metric: str, value: float, unit: str, **extra: Any) -> None:
@@ -76,8 +76,11 @@ class Shadowed:
         self.others = {name: make_model(name) for name in COMPARED}
         self.shadow: dict[str, list[list[float]]] = {name: [] for name in COMPARED}
 
-    def attach(self, terrain: Any, step_s: float) -> None:
-        self.live.attach(terrain, step_s)
+    def attach(self, terrain: Any, step_s: float, loose_top: Any = None) -> None:
+        self.live.attach(terrain, step_s, loose_top)
+
+    def material_top(self, x: float, y: float) -> float:
+        return self.live.material_top(x, y)
 
     def close(self) -> None:
         self.live.close()
@@ -94,13 +97,6 @@ class Shadowed:
                 w = model.wrench(state)
                 self.shadow[name].append([*map(float, w.force), *map(float, w.torque)])
         return wrench
-
-
-def nrmsd(model: np.ndarray, reference: np.ndarray) -> float:
-    """RMS(model - reference) / (max(reference) - min(reference))."""
-    spread = float(reference.max() - reference.min())
-    rms = float(np.sqrt(np.mean((model - reference) ** 2)))
-    return rms / spread if spread > 0 else float("nan")
 
 
 def run(quick: bool) -> tuple[Shadowed, float, float, float]:

@@ -1,7 +1,9 @@
 """The live DEM in the running stack (docs/dem.md, "Live co-simulation"): the simulation with
 ``~terrain_forces: yade`` and the arm services dig; the scoop's wrench during the dig comes from
 YADE (it is not the table's), and when the YADE process is killed in the middle of a second dig,
-the simulation goes on (that dig ends, the rest of it with the table) and logs why.
+the simulation goes on (that dig ends, the rest of it with the table) and logs why. A dig that
+follows a grind to the same depth (the mission's) digs the grinder's cuttings live: the scoop's tip
+is on the trench floor, at depth 0 below the height map, in the bed's loose layer.
 
 A small bed of large spheres keeps a dig to a few minutes of wall time; its template is settled
 before the stack starts, so no dig waits for it.
@@ -82,7 +84,7 @@ def live_stack(ros_stack: Any, start_lander: Any, tmp_path_factory: pytest.TempP
         # The simulation waits for the DEM: each state comes later than the default 5 s allows
         # on a loaded machine.
         arm={"execution": {"joint_state_timeout_s": 300.0}},
-        arm_services=["/arm/unstow", "/arm/dig_linear"],
+        arm_services=["/arm/unstow", "/arm/dig_linear", "/arm/grind"],
         sim_topics=["/joint_states", "/sim/scoop_model_state", "/sim/scoop_model_wrench"],
     )
     from ow_msgs.srv import Unstow
@@ -175,3 +177,25 @@ def test_a_dig_runs_live_and_a_killed_dem_leaves_the_stack_running(live_stack):
     assert sim.alive()
     log = sim.log()
     assert "live DEM: the dig that started at" in log and "killed by signal 9" in log
+
+
+def test_a_dig_after_a_grind_to_its_depth_digs_the_cuttings_live(live_stack):
+    from ow_msgs.srv import Grind
+
+    sim = next(node for node in live_stack.nodes if node.name == "sim")
+    place = {"x": 1.6, "y": 0.3, "ground_position": GROUND}
+    grind = live_stack.service("/arm/grind", Grind)(
+        use_defaults=False, delete_prev_traj=False, parallel=True, depth=0.04, length=0.15, **place
+    )
+    assert grind.success, grind.message
+    digs_before = sim.log().count("live DEM: dig at t=")
+    from ow_msgs.srv import DigLinear
+
+    call = live_stack.service("/arm/dig_linear", DigLinear)
+    response = call(use_defaults=False, delete_prev_traj=False, depth=0.04, length=0.1, **place)
+    assert response.success, response.message
+    log = sim.log()
+    assert log.count("live DEM: dig at t=") > digs_before, "the dig did not reach the DEM"
+    line = log[log.rindex("live DEM: dig at t=") :].splitlines()[0]
+    loose = int(line.split("(")[1].split(" of them loose")[0])
+    assert loose > 0, line  # the grinder's cuttings are in the bed

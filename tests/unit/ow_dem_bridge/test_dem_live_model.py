@@ -267,3 +267,42 @@ def test_a_diverging_dem_fails_the_dig(cache_dir):
         assert model.digs[0].error is not None
     finally:
         model.close()
+
+
+class Trench:
+    """``GROUND`` with a 5 cm deep trench (|y| < 8 cm, x > 1.6 m) in the height map; the
+    grinder's cuttings lie in it up to 1 cm below ``GROUND`` (the loose layer's top)."""
+
+    def height_at(self, x: float, y: float) -> float:
+        return GROUND - 0.05 if abs(y) < 0.08 and x > 1.6 else GROUND
+
+    @staticmethod
+    def loose_top(x: float, y: float) -> float:
+        return GROUND - 0.01 if abs(y) < 0.08 and x > 1.6 else -math.inf
+
+
+@pytest.mark.yade
+@needs_yade
+def test_the_cuttings_in_a_trench_are_loose_spheres_the_scoop_pushes_at_the_trench_floor(
+    cache_dir,
+):
+    """The scoop's tip on the trench floor (depth 0 below the height map): with the loose layer
+    the bed has spheres above the floor and they resist the cut; without it, the trench is
+    empty and the scoop meets almost nothing."""
+    results = {}
+    for loose in (True, False):
+        model = live_model(cache_dir)
+        model.attach(Trench(), STEP_S, Trench.loose_top if loose else None)
+        try:
+            # Tip on the trench floor; a live model's depth is below its material's top.
+            assert model.material_top(1.75, 0.0) == (GROUND - 0.01 if loose else GROUND - 0.05)
+            rows = [model.wrench(cut_state(k, depth=0.05)).force.tolist() for k in range(EXCHANGES)]
+        finally:
+            model.close()
+        (record,) = model.digs
+        results[loose] = (record, np.array(rows))
+    with_loose, empty = results[True], results[False]
+    assert with_loose[0].loose_particles > 20 and empty[0].loose_particles == 0
+    assert with_loose[0].particles > empty[0].particles + with_loose[0].loose_particles // 2
+    assert with_loose[1][10:, 0].mean() < -0.1  # the cuttings push back on the cutting edge
+    assert with_loose[1][10:, 0].mean() < 2 * empty[1][10:, 0].mean()

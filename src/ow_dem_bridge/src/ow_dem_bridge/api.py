@@ -8,6 +8,7 @@ DEM all implement the same protocol.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -88,15 +89,36 @@ class TerrainHeights(Protocol):
         ...
 
 
+#: The loose regolith on the terrain as a live model reads it: (x, y) m in base_link -> m, base_link
+#: z of the top of the loose material (cuttings, spoil) heaped there on the solid terrain, which the
+#: height map does not show (``ow_regolith``'s ledger: ``CarvingLedger.loose_top``); where there is
+#: none, any height at or below the terrain's (``-inf`` beyond the terrain).
+LooseTop = Callable[[float, float], float]
+
+
 @runtime_checkable
 class LockstepModel(TerrainForceModel, Protocol):
     """A model that runs beside the simulation (the live DEM): before its first wrench, the
     simulation gives it its terrain and its physics step; every ``wrench`` then covers exactly
-    one physics step from ``state.time``, and the simulation waits for it."""
+    one physics step from ``state.time``, and the simulation waits for it.
 
-    def attach(self, terrain: TerrainHeights, step_s: float) -> None:
-        """Called once by the simulation: its terrain (read when a dig starts) and its
-        physics step (s), the simulated time each ``wrench`` call advances."""
+    Such a model digs the material it holds, the loose layer included: the simulation asks it
+    about the scoop in a dig phase wherever the tip is below :meth:`material_top`, also where its
+    depth below the height map is 0 (in the grinder's cuttings, on the trench floor), and gives
+    it that depth (``ToolState.depth``)."""
+
+    def attach(
+        self, terrain: TerrainHeights, step_s: float, loose_top: LooseTop | None = None
+    ) -> None:
+        """Called once by the simulation: its terrain (read when a dig starts), its physics step
+        (s), the simulated time each ``wrench`` call advances, and its loose regolith (None:
+        none; read when a dig starts)."""
+        ...
+
+    def material_top(self, x: float, y: float) -> float:
+        """m, base_link z of the top of the material the model digs at (x, y) m (base_link):
+        while a dig is under way its bed's as made (loose layer included), else the terrain's
+        with its loose regolith now."""
         ...
 
     def close(self) -> None:

@@ -17,7 +17,10 @@ as the simulation (YADE single-threaded, seeded, the same inputs bit for bit).
   shipped table by default).
 * **Beds.** One template bed per material is settled once (YADE, seeded) and cached on disk
   (``cache_dir``); every dig loads it, removes the spheres above the terrain's heights and those
-  the scoop overlaps. See docs/dem.md, "Live co-simulation", for the sizes and why.
+  the scoop overlaps. The loose regolith on the terrain (the grinder's cuttings in its trench,
+  which the height map does not show; the simulation hands it over in :meth:`attach`) stays in
+  the bed as loose spheres above the solid surface, up to the loose layer's top
+  (:func:`sample_bed`). See docs/dem.md, "Live co-simulation", for the sizes and why.
 * **Process.** :class:`~ow_dem_bridge.yade_worker.YadeWorker` runs ``yade -n -x -j1
   yade_live.py`` with two pipes and a JSON line per request and reply. It starts (and settles the
   template) when the model is made, in the background; the first dig waits for it.
@@ -45,7 +48,14 @@ from typing import Any
 
 import numpy as np
 
-from ow_dem_bridge.api import FloatArray, TerrainForceModel, TerrainHeights, ToolState, Wrench
+from ow_dem_bridge.api import (
+    FloatArray,
+    LooseTop,
+    TerrainForceModel,
+    TerrainHeights,
+    ToolState,
+    Wrench,
+)
 from ow_dem_bridge.errors import ConfigError, DemRunError
 from ow_dem_bridge.geometry import ToolGeometry, load_tool
 from ow_dem_bridge.live_config import MATERIALS, LiveConfig, steps_per_exchange
@@ -91,7 +101,8 @@ class LiveDig:
     Attributes:
         start_time: s of sim time of the first exchange.
         material: material id.
-        particles: spheres in the bed when the dig started.
+        particles: spheres in the bed when the dig started, the loose ones included.
+        loose_particles: of ``particles``, those of the loose layer (above the solid surface).
         steps_per_exchange: DEM steps per simulation step.
         dem_dt: s, the DEM time step.
         bed_origin: (3,) m, the bed frame's origin in base_link (back of the bed, on its floor).
@@ -113,6 +124,7 @@ class LiveDig:
     start_time: float
     material: int
     particles: int
+    loose_particles: int
     steps_per_exchange: int
     dem_dt: float
     bed_origin: tuple[float, float, float]
@@ -164,6 +176,9 @@ class LiveDemModel:
         self.scoop: ToolGeometry = load_tool(urdf, "l_scoop")
         self.step_s = config.step_s
         self.terrain: TerrainHeights | None = None
+        self.loose_top: LooseTop | None = None
+        #: the bed of the dig under way (its material's top), None between digs.
+        self._grid: BedGrid | None = None
         #: every DEM dig so far, the one under way last.
         self.digs: list[LiveDig] = []
         self._dig: LiveDig | None = None
@@ -183,13 +198,30 @@ class LiveDemModel:
         atexit.register(self.close)
 
     # ------------------------------------------------------------------ the simulation's side
-    def attach(self, terrain: TerrainHeights, step_s: float) -> None:
-        """The simulation's terrain (read when a dig starts) and physics step (s)."""
+    def attach(
+        self, terrain: TerrainHeights, step_s: float, loose_top: LooseTop | None = None
+    ) -> None:
+        """The simulation's terrain and loose regolith (both read when a dig starts) and its
+        physics step (s)."""
         if not step_s > 0:
             msg = f"the physics step must be > 0 s, got {step_s!r}"
             raise ConfigError(msg)
         self.terrain = terrain
+        self.loose_top = loose_top
         self.step_s = step_s
+
+    def material_top(self, x: float, y: float) -> float:
+        """m, base_link z of the material's top at (x, y) m: the bed's as made (its loose layer
+        included; ``-inf`` beyond it) while a dig is under way, else the terrain's with its loose
+        regolith now (``-inf`` before :meth:`attach`)."""
+        if self._grid is not None:
+            return self._grid.top_at(x, y)
+        if self.terrain is None:
+            return -math.inf
+        top = self.terrain.height_at(x, y)
+        if self.loose_top is not None:
+            top = max(top, self.loose_top(x, y))
+        return top
 
     def wrench(self, state: ToolState) -> Wrench:
         """The scoop's wrench from the DEM over one physics step from ``state.time`` while it
@@ -223,6 +255,7 @@ class LiveDemModel:
             DemRunError: the DEM process failed while counting the sample.
         """
         dig, self._dig = self._dig, None
+        self._grid = None
         if dig is None:
             return None
         worker = self._require_worker()
@@ -356,19 +389,10 @@ class LiveDemModel:
             -c.bed_width / 2, c.bed_width / 2, max(2, round(c.bed_width / c.grid_step) + 1)
         )
         back = tip[:2] - c.bed_behind * np.array([cos_h, sin_h])
-        heights = np.array(
-            [
-                [
-                    self.terrain.height_at(
-                        float(back[0] + cos_h * u - sin_h * v),
-                        float(back[1] + sin_h * u + cos_h * v),
-                    )
-                    for u in us
-                ]
-                for v in vs
-            ]
+        grid = sample_bed(
+            self.terrain, self.loose_top, (float(back[0]), float(back[1])), heading, us, vs
         )
-        floor = float(heights.min()) - c.floor_depth
+        floor = float(grid.solid.min()) - c.floor_depth
         bed_origin = (float(back[0]), float(back[1]), floor)
         count, dem_dt = steps_per_exchange(self.step_s, c, soil)
         self._bed = _BedFrame(bed_origin, heading)
@@ -377,7 +401,8 @@ class LiveDemModel:
             "op": "bed",
             "u": us.tolist(),
             "v": vs.tolist(),
-            "h": (heights - floor).tolist(),
+            "h": (grid.solid - floor).tolist(),
+            "top": (grid.top - floor).tolist(),
             "gravity": c.gravity,
             "dt": dem_dt,
             "read_steps": min(c.read_steps, count),
@@ -399,6 +424,7 @@ class LiveDemModel:
             start_time=state.time,
             material=state.material,
             particles=int(reply["particles"]),
+            loose_particles=int(reply["loose_particles"]),
             steps_per_exchange=count,
             dem_dt=dem_dt,
             bed_origin=bed_origin,
@@ -407,13 +433,15 @@ class LiveDemModel:
             setup_wall_s=time.monotonic() - started,
         )
         self._bed_time = float(reply["time"])
+        self._grid = grid
         self.digs.append(dig)
         self._exchanges = 0
         LOG.info(
-            "live DEM: dig at t=%.3f s, bed of %d spheres (%d DEM steps of %.3g s per %.3g s "
-            "step) made in %.1f s",
+            "live DEM: dig at t=%.3f s, bed of %d spheres (%d of them loose regolith; %d DEM "
+            "steps of %.3g s per %.3g s step) made in %.1f s",
             state.time,
             dig.particles,
+            dig.loose_particles,
             count,
             dem_dt,
             self.step_s,
@@ -480,6 +508,7 @@ class LiveDemModel:
         )
         dig.error = str(error)
         self._dig = None
+        self._grid = None
         self._failed_progress = self._last_progress
         self.close()
 
@@ -511,6 +540,71 @@ class _BedFrame:
         turn = self.rotation.T
         position = turn @ (origin - np.asarray(self.origin))
         return position.tolist(), quaternion(turn @ rotation)
+
+
+@dataclass(frozen=True)
+class BedGrid:
+    """The terrain over a bed's footprint, sampled on its grid when the dig starts.
+
+    Attributes:
+        back: (x, y) m in base_link of the bed's back edge centre (the grid's u = v = 0).
+        heading: rad, the bed's x axis (u) from base_link x.
+        us: (nu,) m, grid positions along the dig.
+        vs: (nv,) m, grid positions across it (left positive).
+        solid: (nv, nu) m, base_link z of the terrain's height map (the solid surface).
+        top: (nv, nu) m, base_link z of the material's top: the loose layer's where loose
+            regolith lies on the solid surface, else the solid surface (``top >= solid``).
+    """
+
+    back: tuple[float, float]
+    heading: float
+    us: FloatArray
+    vs: FloatArray
+    solid: FloatArray
+    top: FloatArray
+
+    def top_at(self, x: float, y: float) -> float:
+        """m, the material's top at (x, y) m in base_link, bilinear on the grid; ``-inf``
+        outside the footprint."""
+        dx, dy = x - self.back[0], y - self.back[1]
+        c, s = math.cos(self.heading), math.sin(self.heading)
+        u, v = c * dx + s * dy, -s * dx + c * dy
+        us, vs = self.us, self.vs
+        if not (us[0] <= u <= us[-1] and vs[0] <= v <= vs[-1]):
+            return -math.inf
+        i = min(int((u - us[0]) / (us[1] - us[0])), len(us) - 2)
+        j = min(int((v - vs[0]) / (vs[1] - vs[0])), len(vs) - 2)
+        a = (u - us[i]) / (us[i + 1] - us[i])
+        b = (v - vs[j]) / (vs[j + 1] - vs[j])
+        h = self.top
+        return float(
+            (1 - a) * (1 - b) * h[j, i]
+            + a * (1 - b) * h[j, i + 1]
+            + (1 - a) * b * h[j + 1, i]
+            + a * b * h[j + 1, i + 1]
+        )
+
+
+def sample_bed(
+    terrain: TerrainHeights,
+    loose_top: LooseTop | None,
+    back: tuple[float, float],
+    heading: float,
+    us: FloatArray,
+    vs: FloatArray,
+) -> BedGrid:
+    """The solid heights and the material's top (the loose layer's where there is one) on a
+    bed's grid: point (u, v) lies at ``back + u * (cos h, sin h) + v * (-sin h, cos h)``."""
+    cos_h, sin_h = math.cos(heading), math.sin(heading)
+    solid = np.empty((len(vs), len(us)))
+    top = np.empty_like(solid)
+    for j, v in enumerate(vs):
+        for i, u in enumerate(us):
+            x = float(back[0] + cos_h * u - sin_h * v)
+            y = float(back[1] + sin_h * u + cos_h * v)
+            solid[j, i] = terrain.height_at(x, y)
+            top[j, i] = solid[j, i] if loose_top is None else max(solid[j, i], loose_top(x, y))
+    return BedGrid(back, heading, np.asarray(us), np.asarray(vs), solid, top)
 
 
 def _heading(rotation: FloatArray, velocity: FloatArray, tip: FloatArray) -> float:

@@ -110,10 +110,11 @@ def read_report_messages(bags: Sequence[Path], joint_states: bool = True) -> Top
     Raises:
         BagReadError: a bag cannot be read; the message names it.
     """
-    from ow_mission import fault_report, recording
+    from ow_mission import fault_report, live_dem_report, recording
     from ow_power import analysis
 
     topics = {*analysis.TOPICS, *recording.TOPICS, *fault_report.TOPICS, *SAMPLE_TOPICS}
+    topics.update(live_dem_report.TOPICS)  # recorded by live-DEM missions only
     if not joint_states:
         topics.discard(recording.JOINT_STATES_TOPIC)
     return read_messages(bags, topics)
@@ -652,6 +653,11 @@ def write_run_report(
             _figures_from_bags(run_dir, document, bags, messages, figures, renders)
         if messages is not None:
             _attempt(figures, "sample", functools.partial(sample_section, document, messages))
+            from ow_mission.live_dem_report import live_dem_section
+
+            windows = step_windows(document)
+            live_dem = functools.partial(live_dem_section, document, messages, windows)
+            _attempt(figures, "live_dem", live_dem)
             _attempt(
                 figures,
                 "battery",

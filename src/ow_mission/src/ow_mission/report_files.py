@@ -113,6 +113,7 @@ def markdown(run_dir: Path, document: Mapping[str, Any], figures: Figures) -> st
         "*peak total* that of the total power with P0.",
         "",
         *sample_lines(document),
+        *_live_dem_lines(document),
         *_faults_lines(document),
         "## Figures",
         "",
@@ -173,6 +174,12 @@ def sample_lines(document: Mapping[str, Any]) -> list[str]:
         "",
     ]
     return lines
+
+
+def _live_dem_lines(document: Mapping[str, Any]) -> list[str]:
+    from ow_mission.live_dem_report import markdown_lines
+
+    return markdown_lines(document)
 
 
 def _faults_lines(document: Mapping[str, Any]) -> list[str]:

@@ -22,6 +22,7 @@ Frames: the lander's ``base_link`` is fixed at the world origin, so world and ba
 
 from __future__ import annotations
 
+import math
 import tempfile
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -162,8 +163,11 @@ class BulletSim:
             for tool, index in tool_links.items()
         }
         self.carver = TerrainCarver(heightmap, config, cutters, self._make_surface)
-        if isinstance(force_model, LockstepModel):  # the live DEM: this terrain, this step
-            force_model.attach(self.carver, self.dt)
+        self.regolith, self._regolith_scoop = self._make_regolith(heightmap)
+        material_top = None
+        if isinstance(force_model, LockstepModel):  # the live DEM: this terrain, loose, step
+            force_model.attach(self.carver, self.dt, self._loose_top)
+            material_top = force_model.material_top
         self.forces = ToolForces(tool_links)
         self.tracker = ToolTracker(
             model,
@@ -172,9 +176,9 @@ class BulletSim:
             self.carver,
             config,
             frames=(*self.link_index, "base_link"),
+            material_top=material_top,
         )
         self._tool_links = tool_links
-        self.regolith, self._regolith_scoop = self._make_regolith(heightmap)
         joint_index = dict(zip(self.names, self._bullet_index, strict=True))
         self.locks = JointLocks(self.client, self.robot, joint_index)
         self.wrist_faults = WristFaults(config.noise_seed)
@@ -251,6 +255,14 @@ class BulletSim:
             msg = f"regolith: {error}"
             raise ConfigError(msg) from error
         return regolith, self.link_index[config.scoop.link]
+
+    def _loose_top(self, x: float, y: float) -> float:
+        """m, base_link z of the top of the loose regolith in the terrain cell nearest (x, y) m
+        (its solid top where there is none; ``-inf`` beyond the terrain): the regolith ledger's
+        (``CarvingLedger.loose_top``), for the live DEM's beds."""
+        ledger = self.regolith.tracker.ledger
+        cell = ledger.cell_at(x, y)
+        return -math.inf if cell is None else ledger.loose_top(cell)
 
     def _make_surface(self, heightmap: HeightMap) -> BulletTerrain:
         """The terrain as Bullet heightfields, colliding with the tools if ``tool_contact``."""

@@ -13,7 +13,7 @@ from __future__ import annotations
 import enum
 import math
 from collections import deque
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -262,6 +262,12 @@ class ToolTracker:
             (``terrain_material``) and when the tools dig (``dig_*``, ``grind_down_angle``).
         frames: the frames :meth:`link_poses` reports (those the model has); must include the
             tools' links and tips and :data:`WRIST_FT_LINK`.
+        material_top: (x, y) m -> m, base_link z of the top of the material a live
+            terrain-force model digs (``LockstepModel.material_top``: its bed, loose regolith
+            included), or None (the other models: only the height map counts). With it, the
+            scoop in a dig phase is in the ground, for the model, wherever its tip is below that
+            top, also where its depth below the height map is 0 (the grinder's cuttings on the
+            floor of its trench), and its depth is the larger of the two.
 
     Attributes:
         dig: the scoop's dig phase (decided at each :meth:`update_digging`).
@@ -277,8 +283,10 @@ class ToolTracker:
         terrain: TerrainDepth,
         config: SimConfig,
         frames: Iterable[str],
+        material_top: Callable[[float, float], float] | None = None,
     ) -> None:
         self._model = model
+        self._material_top = material_top
         self._data = model.createData()
         self._terrain = terrain
         self.material = config.terrain_material
@@ -479,7 +487,8 @@ class ToolTracker:
         for tool in TOOLS:
             track = self._tools[tool]
             tip = np.array(self._data.oMf[self._frame_id[TOOLS[tool][1]]].translation)
-            if self._terrain.above(tip):
+            material_depth = self.material_depth(tool, tip)
+            if material_depth <= 0.0 and self._terrain.above(tip):
                 # Above every part of the terrain its depth is 0 whatever its velocity: the
                 # velocities (most of the kinematics) are not needed (the grinder, most steps).
                 self._track_progress(tool, now, tip, 0.0)
@@ -487,6 +496,7 @@ class ToolTracker:
                 continue
             X_base_link, tip, tip_velocity, _, angular = self._tool_kinematics(tool)
             _, depth = self._terrain.depth(tip, tip_velocity)
+            depth = max(depth, material_depth)
             state = self.track_dig(tool, now, X_base_link, tip, tip_velocity, angular, depth)
             track.model_wrench = None
             if state is None:
@@ -510,6 +520,15 @@ class ToolTracker:
             origin = np.asarray(X.translation)
             self.forces.add(tool, force_world, cross(origin, force_world) + moment_world)
         return total
+
+    def material_depth(self, tool: str, tip: FloatArray) -> float:
+        """m, the depth of ``tool``'s tip (3,) m in base_link below the top of the live model's
+        material (``material_top``): for the scoop in a dig phase with a live model only, else 0.
+        """
+        if self._material_top is None or tool != "scoop" or not self.dig.phase.digging:
+            return 0.0
+        x, y, z = tip.tolist()
+        return max(0.0, self._material_top(x, y) - z)
 
     # ------------------------------------------------------------------ outputs
     def snapshot(self, tool: str, sample: JointSample, now: float, track: bool) -> ToolSnapshot:
