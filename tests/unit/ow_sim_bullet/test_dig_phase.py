@@ -13,6 +13,7 @@ import pinocchio as pin
 import pybullet as pb
 import pytest
 
+from ow_dem_bridge.api import Wrench
 from ow_description.description import DEFAULT_GROUND_Z, EUROPA_GRAVITY, UNSTOWED, URDF_PATH
 from ow_description.model import LanderModel
 from ow_description.terrain import HeightMap
@@ -245,5 +246,60 @@ def test_a_linear_dig_cuts_its_trench_and_carves_only_while_digging(ops):
         assert np.allclose(cut, GROUND - 0.05, atol=0.005)
         hit = pb.rayTest([1.75, 0.0, 1.0], [1.75, 0.0, -1.0], physicsClientId=sim.client)[0]
         assert hit[3][2] == pytest.approx(sim.terrain_height(1.75, 0.0), abs=0.005)
+    finally:
+        sim.close()
+
+
+class EndRecordingLiveModel:
+    """A live (lockstep) terrain-force model that answers no force and records when it was
+    asked and when the simulation told it the dig ended (the simulation's time and phase)."""
+
+    def __init__(self) -> None:
+        self.sim: BulletSim | None = None
+        self.asked: list[tuple[float, bool]] = []
+        self.ended: list[tuple[float, DigPhase]] = []
+        self._terrain = None
+
+    def attach(self, terrain, step_s, loose_top=None) -> None:
+        self._terrain = terrain
+
+    def material_top(self, x: float, y: float) -> float:
+        return self._terrain.height_at(x, y)
+
+    def wrench(self, state):
+        self.asked.append((state.time, bool(state.digging)))
+        return Wrench(np.zeros(3), np.zeros(3))
+
+    def dig_ended(self) -> None:
+        assert self.sim is not None
+        self.ended.append((self.sim.time, self.sim.dig_phase))
+
+    def close(self) -> None:
+        """Nothing runs beside."""
+
+
+def test_a_live_model_is_told_once_when_the_dig_phase_ends(ops):
+    """The live DEM counts its sample when the scoop's dig phase ends (not at the next dig's
+    start, which a mission's last dig never has): the simulation tells it once per dig, at
+    the carve update where the phase turned NOT_DIGGING, after every state it was asked about
+    in the dig."""
+    live = EndRecordingLiveModel()
+    sim = BulletSim(CONFIG, flat(GROUND), force_model=live)
+    live.sim = sim
+    try:
+        for _ in range(round(_execute(sim, ops, "unstow") / sim.dt)):
+            sim.step()
+        assert live.ended == []
+        request = dict(x=1.65, y=0.0, depth=0.05, length=0.2, ground_position=GROUND)
+        turned = []
+        for _ in range(round((_execute(sim, ops, "dig_linear", request) + 1.0) / sim.dt)):
+            before = sim.dig_phase
+            sim.step()
+            if before.digging and not sim.dig_phase.digging:
+                turned.append(sim.time)
+        assert len(turned) == 1
+        assert live.ended == [(turned[0], NOT)]
+        digging = [t for t, d in live.asked if d]
+        assert digging and max(digging) < turned[0]
     finally:
         sim.close()

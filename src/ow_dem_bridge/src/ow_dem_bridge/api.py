@@ -121,6 +121,16 @@ class LockstepModel(TerrainForceModel, Protocol):
         with its loose regolith now."""
         ...
 
+    def dig_ended(self) -> None:
+        """Called by the simulation when the scoop's dig phase ends (it is not digging any more
+        after a dig phase): the dig under way ends there, at the same simulated time in every
+        run, and whatever it holds at its end is counted (the DEM: the spheres in the scoop).
+
+        Raises:
+            DemRunError: the model failed while ending the dig.
+        """
+        ...
+
     def close(self) -> None:
         """Stop whatever runs beside the simulation (idempotent)."""
         ...

@@ -10,9 +10,10 @@ as the simulation (YADE single-threaded, seeded, the same inputs bit for bit).
 * **When.** A DEM *dig* starts at the first scoop state in a dig phase (``state.digging``): a bed
   of spheres is carved to the simulation's terrain around the scoop, aligned with its heading, and
   the scoop's facets (from the URDF, :mod:`ow_dem_bridge.geometry`) are placed in it. The dig goes
-  on, every state of the scoop in the ground an exchange, until the simulation starts a new dig
-  (its progress starts again from zero) or the scoop has been out for :data:`DIG_GAP_S`; then the
-  spheres in the scoop are the dig's sample (:attr:`LiveDig.sample`). The grinder and the scoop
+  on, every state of the scoop in the ground an exchange, until the simulation's dig phase ends
+  (:meth:`LiveDemModel.dig_ended`), the simulation starts a new dig (its progress starts again
+  from zero) or the scoop has been out for :data:`DIG_GAP_S`; then the spheres in the scoop are
+  the dig's sample (:attr:`LiveDig.sample`). The grinder and the scoop
   outside a dig phase (a guarded move touching the ground) get the *fallback* model's wrench (the
   shipped table by default).
 * **Beds.** One template bed per material is settled once (YADE, seeded) and cached on disk
@@ -247,6 +248,15 @@ class LiveDemModel:
                 return self.fallback.wrench(state)
             self._dig = self._start_dig(state)
         return self._exchange(self._dig, state)
+
+    def dig_ended(self) -> None:
+        """The simulation's scoop left its dig phase: :meth:`finish_dig` (the sample counted
+        now, not at the next dig's start, which the mission's last dig never has).
+
+        Raises:
+            DemRunError: the DEM process failed while counting the sample.
+        """
+        self.finish_dig()
 
     def finish_dig(self) -> LiveDig | None:
         """End the DEM dig under way (its sample: the spheres in the scoop); the dig, or None.

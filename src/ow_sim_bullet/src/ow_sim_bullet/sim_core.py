@@ -22,6 +22,7 @@ Frames: the lander's ``base_link`` is fixed at the world origin, so world and ba
 
 from __future__ import annotations
 
+import contextlib
 import math
 import tempfile
 from collections.abc import Callable, Mapping
@@ -427,8 +428,18 @@ class BulletSim:
         self.forces.add_contacts(pb.getContactPoints(bodyA=self.robot, physicsClientId=self.client))
         if self.time >= self._next_carve - 1e-9:
             self._next_carve = self.time + self.config.carve_period
+            was_digging = self.tracker.dig.phase.digging
             self.tracker.update_digging(q, self.time)
+            if was_digging and not self.tracker.dig.phase.digging:
+                self._dig_ended()
             self._carve()
+
+    def _dig_ended(self) -> None:
+        """The scoop's dig phase ended: a live terrain-force model ends its dig here."""
+        if isinstance(self.force_model, LockstepModel):
+            # A failure is logged by the model; the dig's forces were all applied already.
+            with contextlib.suppress(DemRunError):
+                self.force_model.dig_ended()
 
     def _carve(self) -> None:
         """One carve update: the regolith follows the scoop (it collects in a dig, spills and
