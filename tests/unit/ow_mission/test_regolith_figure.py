@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib
 import numpy as np
 import pytest
 from PIL import Image
@@ -148,7 +149,10 @@ def test_no_budget_is_an_error_naming_the_topic():
         (_mission()[:1], (990, 550)),  # nothing excavated: the accounts alone
     ],
 )
-def test_the_figure_is_drawn(tmp_path, budgets, size):
+def test_the_figure_is_drawn(tmp_path, monkeypatch, budgets, size):
+    # At its own size whatever matplotlib's savefig default is: progpy.visualize sets it to 300
+    # dpi when imported (a test process that imported it drew 3600 x 1500).
+    monkeypatch.setitem(matplotlib.rcParams, "savefig.dpi", 300)
     png = tmp_path / "regolith.png"
     plot_regolith(regolith_series(budgets, WINDOWS), png)
     with Image.open(png) as image:

@@ -309,5 +309,5 @@ def plot_battery(
         fontsize=9,
     )
     fig.tight_layout()
-    fig.savefig(png_path)
+    fig.savefig(png_path, dpi=fig.dpi)  # not rcParams: progpy.visualize sets 300 on import
     plt.close(fig)

@@ -306,7 +306,7 @@ def plot_trench(profile: TrenchProfile, png_path: Path) -> None:
         fontsize=10,
     )
     fig.tight_layout()
-    fig.savefig(png_path)
+    fig.savefig(png_path, dpi=fig.dpi)  # not rcParams: progpy.visualize sets 300 on import
     plt.close(fig)
 
 
@@ -492,5 +492,5 @@ def plot_guarded_move(trace: DetectorTrace, png_path: Path) -> None:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="best")
     fig.tight_layout()
-    fig.savefig(png_path)
+    fig.savefig(png_path, dpi=fig.dpi)  # not rcParams: progpy.visualize sets 300 on import
     plt.close(fig)

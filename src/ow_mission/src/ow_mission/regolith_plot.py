@@ -230,5 +230,5 @@ def plot_regolith(series: RegolithSeries, png_path: Path) -> None:
         f"Where the excavated regolith is (/regolith/budget, stacked): {closes}", fontsize=10
     )
     fig.tight_layout()
-    fig.savefig(png_path)
+    fig.savefig(png_path, dpi=fig.dpi)  # not rcParams: progpy.visualize sets 300 on import
     plt.close(fig)

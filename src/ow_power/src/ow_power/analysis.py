@@ -632,7 +632,7 @@ def plot_power(
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=3, fontsize=8)
     stack_labels(fig, ax, texts)
     fig.tight_layout()
-    fig.savefig(png_path)
+    fig.savefig(png_path, dpi=fig.dpi)  # not rcParams: progpy.visualize sets 300 on import
     plt.close(fig)
     return labels
 
