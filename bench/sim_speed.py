@@ -2,7 +2,8 @@
 
 Starts a private master and ``rosrun ow_sim_bullet sim`` with ``real_time_factor: 0`` and measures
 sim seconds per wall second (a) while the arm holds the stowed pose and (b) while the scoop is
-pushed into the terrain and dragged through it, carving a trench. One JSON line per metric.
+lowered onto the terrain and dragged mouth first through it, digging (a dig phase: the terrain
+gives way and is carved, the regolith collected). One JSON line per metric.
 Bar (issue 4): at least 30x real time on the project's 2-core machine.
 
     source env.sh && python bench/sim_speed.py
@@ -11,6 +12,7 @@ Bar (issue 4): at least 30x real time on the project's 2-core machine.
 from __future__ import annotations
 
 import json
+import math
 import os
 import threading
 import time
@@ -72,6 +74,16 @@ def line(metric: str, value: float, unit: str, **extra: object) -> None:
     print(
         json.dumps({"metric": metric, "value": round(value, 2), "unit": unit, **extra}), flush=True
     )
+
+
+def dig_pose(pose: dict[str, float]) -> dict[str, float]:
+    """``pose`` with the scoop's mouth turned along the shoulder yaw's sweep (scoop yaw +pi/2)
+    and pointing 0.1 rad down (hand yaw -0.1): dragged so, the scoop digs."""
+    return {
+        **pose,
+        "j_scoop_yaw": pose["j_scoop_yaw"] + math.pi / 2,
+        "j_hand_yaw": pose["j_hand_yaw"] - 0.1,
+    }
 
 
 def trajectory(points: list[tuple[float, dict[str, float]]]) -> JointTrajectory:
@@ -140,16 +152,18 @@ def main() -> None:
             wall_a1 = watch.wait(65.0)
             line("sim_rtf_holding", 60.0 / (wall_a1 - wall_a0), "x real time", window_sim_s=60.0)
 
-            # (b) scoop into the terrain, then dragged sideways through fresh terrain for 60 s
-            # (one sweep of the shoulder yaw, 1.7 cm/s at the scoop: passes back and forth
-            # through their own trench would leave the scoop out of contact most of the time).
+            # (b) scoop onto the terrain, then dragged sideways, mouth first, through fresh
+            # terrain for 60 s (one sweep of the shoulder yaw, 1.7 cm/s at the scoop: passes
+            # back and forth through their own trench would leave the scoop out of contact most
+            # of the time). Mouth first and pointing down, the drag is a dig phase (the terrain
+            # gives way: spec 14.2); dragged broadside it would only press on solid ground.
             rospy.ServiceProxy("/sim/pause", Trigger)()
             time.sleep(0.5)
             start = watch.sim
             points = [
-                (10.0, {**SCOOP_ABOVE_GROUND, "j_shou_yaw": -0.3}),
-                (15.0, {**SCOOP_BELOW_GROUND, "j_shou_yaw": -0.3}),
-                (80.0, {**SCOOP_BELOW_GROUND, "j_shou_yaw": 0.35}),
+                (10.0, {**dig_pose(SCOOP_ABOVE_GROUND), "j_shou_yaw": -0.3}),
+                (15.0, {**dig_pose(SCOOP_BELOW_GROUND), "j_shou_yaw": -0.3}),
+                (80.0, {**dig_pose(SCOOP_BELOW_GROUND), "j_shou_yaw": 0.35}),
             ]
             msg = trajectory(points)
             msg.header.stamp = rospy.Time.from_sec(start + 1.0)
