@@ -25,7 +25,7 @@ from __future__ import annotations
 import contextlib
 import math
 import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -106,6 +106,62 @@ def make_force_model(
     return model
 
 
+def load_robot(
+    client: int, urdf_text: str, names: Sequence[str], tool_contact: bool
+) -> tuple[int, dict[str, int], list[int]]:
+    """Load the URDF into pybullet client ``client`` under torque control: only the tools
+    collide (with the terrain, if ``tool_contact``), no Bullet damping.
+
+    Returns:
+        The body id, link name -> link index, and the joint indices of ``names``.
+    """
+    with tempfile.TemporaryDirectory(prefix="ow_sim_bullet_") as directory:
+        urdf_path = Path(directory) / "lander.urdf"
+        urdf_path.write_text(urdf_text)
+        robot = pb.loadURDF(
+            str(urdf_path),
+            useFixedBase=True,
+            flags=pb.URDF_USE_INERTIA_FROM_FILE,
+            physicsClientId=client,
+        )
+    link_index: dict[str, int] = {}
+    joint_index: dict[str, int] = {}
+    for index in range(pb.getNumJoints(robot, physicsClientId=client)):
+        info = pb.getJointInfo(robot, index, physicsClientId=client)
+        joint_index[info[1].decode()] = index
+        link_index[info[12].decode()] = index
+    bullet_index = [joint_index[j] for j in names]
+    tools = [link_index[name] for name in TERRAIN_CONTACT_LINKS]
+    for link in (-1, *link_index.values()):
+        pb.changeDynamics(
+            robot,
+            link,
+            linearDamping=0.0,
+            angularDamping=0.0,
+            jointDamping=0.0,
+            physicsClientId=client,
+        )
+        is_tool = link >= 0 and link in tools
+        pb.setCollisionFilterGroupMask(
+            robot,
+            link,
+            _TOOL_GROUP if is_tool else _OTHER_GROUP,
+            _TERRAIN_GROUP if is_tool and tool_contact else 0,
+            physicsClientId=client,
+        )
+        if is_tool:
+            pb.changeDynamics(robot, link, lateralFriction=_TOOL_FRICTION, physicsClientId=client)
+    # Torque control needs the default velocity motors off.
+    pb.setJointMotorControlArray(
+        robot,
+        bullet_index,
+        pb.VELOCITY_CONTROL,
+        forces=[0.0] * len(names),
+        physicsClientId=client,
+    )
+    return robot, link_index, bullet_index
+
+
 class BulletSim:
     """The lander on Europa in pybullet, with PID-controlled joints and a carvable terrain.
 
@@ -149,7 +205,9 @@ class BulletSim:
             contactBreakingThreshold=_CONTACT_BREAKING_THRESHOLD,
             physicsClientId=self.client,
         )
-        self.robot, self.link_index, self._bullet_index = self._load_robot(urdf_text)
+        self.robot, self.link_index, self._bullet_index = load_robot(
+            self.client, urdf_text, self.names, config.tool_contact
+        )
         spacing = heightmap.resolution / _POINTS_PER_CELL
         cutters = {
             tool: np.ascontiguousarray(collision_surface_points(urdf_text, link, spacing).T)
@@ -188,61 +246,6 @@ class BulletSim:
         self._next_carve = 0.0
         self.sample: JointSample
         self.reset()
-
-    def _load_robot(self, urdf_text: str) -> tuple[int, dict[str, int], list[int]]:
-        """Load the URDF into pybullet under torque control: only the tools collide (with the
-        terrain, if ``tool_contact``), no Bullet damping.
-
-        Returns:
-            The body id, link name -> link index, and the joint indices of :attr:`names`.
-        """
-        with tempfile.TemporaryDirectory(prefix="ow_sim_bullet_") as directory:
-            urdf_path = Path(directory) / "lander.urdf"
-            urdf_path.write_text(urdf_text)
-            robot = pb.loadURDF(
-                str(urdf_path),
-                useFixedBase=True,
-                flags=pb.URDF_USE_INERTIA_FROM_FILE,
-                physicsClientId=self.client,
-            )
-        link_index: dict[str, int] = {}
-        joint_index: dict[str, int] = {}
-        for index in range(pb.getNumJoints(robot, physicsClientId=self.client)):
-            info = pb.getJointInfo(robot, index, physicsClientId=self.client)
-            joint_index[info[1].decode()] = index
-            link_index[info[12].decode()] = index
-        bullet_index = [joint_index[j] for j in self.names]
-        tools = [link_index[name] for name in TERRAIN_CONTACT_LINKS]
-        for link in (-1, *link_index.values()):
-            pb.changeDynamics(
-                robot,
-                link,
-                linearDamping=0.0,
-                angularDamping=0.0,
-                jointDamping=0.0,
-                physicsClientId=self.client,
-            )
-            is_tool = link >= 0 and link in tools
-            pb.setCollisionFilterGroupMask(
-                robot,
-                link,
-                _TOOL_GROUP if is_tool else _OTHER_GROUP,
-                _TERRAIN_GROUP if is_tool and self.config.tool_contact else 0,
-                physicsClientId=self.client,
-            )
-            if is_tool:
-                pb.changeDynamics(
-                    robot, link, lateralFriction=_TOOL_FRICTION, physicsClientId=self.client
-                )
-        # Torque control needs the default velocity motors off.
-        pb.setJointMotorControlArray(
-            robot,
-            bullet_index,
-            pb.VELOCITY_CONTROL,
-            forces=[0.0] * len(self.names),
-            physicsClientId=self.client,
-        )
-        return robot, link_index, bullet_index
 
     def _make_regolith(self, heightmap: HeightMap) -> tuple[SimRegolith, int]:
         """The regolith of the initial terrain and the Bullet link index of its scoop link."""
