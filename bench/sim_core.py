@@ -3,11 +3,11 @@ carving) and its outputs (every message built and serialised as the node does, t
 
 Drives ``BulletSim`` and ``SimOutputs`` of the simulation node's configuration (``sim.yaml``,
 ``pid.yaml``) on flat ground at the stowed pose's height, (a) holding the stowed pose and (b) in
-the sweep ``bench/sim_speed.py`` digs (the scoop pushed in and dragged sideways through fresh
-terrain), with no terrain-force model and (c) with the DEM tables the mission uses. One JSON line
-per metric: us a step of the core alone, of the core with its outputs, of Bullet's
-``stepSimulation`` within them and of every pybullet call within them (the part no change of our
-Python can remove: the rest is our Python); the real-time factor they allow. Where
+the sweep ``bench/sim_speed.py`` digs (``SCOOP_DIG_SWEEP``: the scoop lowered and dragged mouth
+first through fresh terrain), with no terrain-force model and (c) with the DEM tables the mission
+uses. One JSON line per metric: us a step of the core alone, of the core with its outputs, of
+Bullet's ``stepSimulation`` within them and of every pybullet call within them (the part no change
+of our Python can remove: the rest is our Python); the real-time factor they allow. Where
 ``bench/sim_speed.py`` adds the node's ROS (sockets, threads) and the machine's other processes,
 this isolates the simulation's own code (docs/history/performance-journal.md, twelfth and thirteenth
 rounds).
@@ -29,7 +29,7 @@ import yaml
 from ow_description.description import (
     DEFAULT_GROUND_Z,
     SCOOP_ABOVE_GROUND,
-    SCOOP_BELOW_GROUND,
+    SCOOP_DIG_SWEEP,
     URDF_PATH,
 )
 from ow_sim_bullet import conversions
@@ -116,19 +116,14 @@ def _simulation(forces: str) -> tuple[BulletSim, SimOutputs]:
 
 
 def _sweep(sim: BulletSim) -> JointTrajectory:
-    """bench/sim_speed.py's: above the ground, into it, then 65 s sideways through it."""
+    """bench/sim_speed.py's dig (SCOOP_DIG_SWEEP) from where the arm is."""
     joints = list(SCOOP_ABOVE_GROUND)
-    points = [
-        (10.0, {**SCOOP_ABOVE_GROUND, "j_shou_yaw": -0.3}),
-        (15.0, {**SCOOP_BELOW_GROUND, "j_shou_yaw": -0.3}),
-        (80.0, {**SCOOP_BELOW_GROUND, "j_shou_yaw": 0.35}),
-    ]
     start = [sim.position(j) for j in joints]
     return JointTrajectory.build(
         joints,
         sim.time,
-        [0.0, *(t for t, _ in points)],
-        [start, *([pose[j] for j in joints] for _, pose in points)],
+        [0.0, *(t for t, _ in SCOOP_DIG_SWEEP)],
+        [start, *([pose[j] for j in joints] for _, pose in SCOOP_DIG_SWEEP)],
         None,
         sim.names,
     )

@@ -12,10 +12,10 @@ Bar (issue 4): at least 30x real time on the project's 2-core machine.
 from __future__ import annotations
 
 import json
-import math
 import os
 import threading
 import time
+from collections.abc import Sequence
 
 import numpy as np
 import rospy
@@ -25,7 +25,7 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ow_bringup.testing import RosStack, private_master
-from ow_description.description import DEFAULT_GROUND_Z, SCOOP_ABOVE_GROUND, SCOOP_BELOW_GROUND
+from ow_description.description import DEFAULT_GROUND_Z, SCOOP_ABOVE_GROUND, SCOOP_DIG_SWEEP
 from ow_msgs.msg import ToolState
 
 OUTPUTS = [
@@ -76,17 +76,7 @@ def line(metric: str, value: float, unit: str, **extra: object) -> None:
     )
 
 
-def dig_pose(pose: dict[str, float]) -> dict[str, float]:
-    """``pose`` with the scoop's mouth turned along the shoulder yaw's sweep (scoop yaw +pi/2)
-    and pointing 0.1 rad down (hand yaw -0.1): dragged so, the scoop digs."""
-    return {
-        **pose,
-        "j_scoop_yaw": pose["j_scoop_yaw"] + math.pi / 2,
-        "j_hand_yaw": pose["j_hand_yaw"] - 0.1,
-    }
-
-
-def trajectory(points: list[tuple[float, dict[str, float]]]) -> JointTrajectory:
+def trajectory(points: Sequence[tuple[float, dict[str, float]]]) -> JointTrajectory:
     msg = JointTrajectory()
     msg.joint_names = list(SCOOP_ABOVE_GROUND)
     for t, pose in points:
@@ -152,20 +142,13 @@ def main() -> None:
             wall_a1 = watch.wait(65.0)
             line("sim_rtf_holding", 60.0 / (wall_a1 - wall_a0), "x real time", window_sim_s=60.0)
 
-            # (b) scoop onto the terrain, then dragged sideways, mouth first, through fresh
-            # terrain for 60 s (one sweep of the shoulder yaw, 1.7 cm/s at the scoop: passes
-            # back and forth through their own trench would leave the scoop out of contact most
-            # of the time). Mouth first and pointing down, the drag is a dig phase (the terrain
-            # gives way: spec 14.2); dragged broadside it would only press on solid ground.
+            # (b) scoop onto the terrain, then dragged mouth first through fresh terrain for 60 s
+            # (SCOOP_DIG_SWEEP: one sweep of the shoulder yaw; passes back and forth through
+            # their own trench would leave the scoop out of contact most of the time).
             rospy.ServiceProxy("/sim/pause", Trigger)()
             time.sleep(0.5)
             start = watch.sim
-            points = [
-                (10.0, {**dig_pose(SCOOP_ABOVE_GROUND), "j_shou_yaw": -0.3}),
-                (15.0, {**dig_pose(SCOOP_BELOW_GROUND), "j_shou_yaw": -0.3}),
-                (80.0, {**dig_pose(SCOOP_BELOW_GROUND), "j_shou_yaw": 0.35}),
-            ]
-            msg = trajectory(points)
+            msg = trajectory(SCOOP_DIG_SWEEP)
             msg.header.stamp = rospy.Time.from_sec(start + 1.0)
             commands.publish(msg)
             time.sleep(0.5)

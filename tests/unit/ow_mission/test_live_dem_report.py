@@ -13,8 +13,8 @@ import pytest
 from ow_dem_bridge.api import ToolState, Wrench
 from ow_dem_bridge.comparison import compare_forces, nrmsd
 from ow_mission.live_dem_report import dig_series, dig_summary, live_dem_section, markdown_lines
-from ow_mission.mission_config import SCOOP_MODEL_STATE, SCOOP_MODEL_WRENCH
 from ow_mission.report import step_windows
+from ow_runtime.names import SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH
 
 TIP = np.array([0.1, 0.0, 0.08])
 
@@ -76,8 +76,8 @@ def _wrench(t: float, fx: float) -> SimpleNamespace:
 
 def _messages(times: list[float], depths: list[float]) -> dict[str, list]:
     return {
-        SCOOP_MODEL_STATE: [(0, _state(t, d)) for t, d in zip(times, depths, strict=True)],
-        SCOOP_MODEL_WRENCH: [(0, _wrench(t, -t)) for t in times],
+        SIM_SCOOP_MODEL_STATE: [(0, _state(t, d)) for t, d in zip(times, depths, strict=True)],
+        SIM_SCOOP_MODEL_WRENCH: [(0, _wrench(t, -t)) for t in times],
     }
 
 

@@ -95,6 +95,27 @@ SCOOP_BELOW_GROUND: dict[str, float] = {
     "j_prox_pitch": -2.2945,
     "j_dist_pitch": 1.204,
 }
+#: (s from the start, rad by arm joint): the benches' dig (bench/sim_speed.py, bench/sim_core.py):
+#: the scoop lowered onto the ground at shoulder yaw -0.3, then dragged for 65 s to yaw 0.35
+#: (1.7 cm/s) with its mouth turned along the sweep (scoop yaw + pi/2) and pointing 0.1 rad down
+#: (hand yaw - 0.1): mouth first, a dig phase (the terrain gives way); broadside it would only
+#: press on solid ground.
+SCOOP_DIG_SWEEP: tuple[tuple[float, dict[str, float]], ...] = tuple(
+    (
+        t,
+        {
+            **pose,
+            "j_shou_yaw": yaw,
+            "j_scoop_yaw": pose["j_scoop_yaw"] + math.pi / 2,
+            "j_hand_yaw": pose["j_hand_yaw"] - 0.1,
+        },
+    )
+    for t, pose, yaw in (
+        (10.0, SCOOP_ABOVE_GROUND, -0.3),
+        (15.0, SCOOP_BELOW_GROUND, -0.3),
+        (80.0, SCOOP_BELOW_GROUND, 0.35),
+    )
+)
 #: rad, the unstowed ("safe") configuration of the arm joints (later OceanWATERS arm_unstowed).
 UNSTOWED: dict[str, float] = {
     "j_shou_yaw": 0.0,

@@ -22,11 +22,11 @@ import numpy as np
 
 from ow_dem_bridge.api import LIVE_MODEL_NAME, FloatArray, TerrainForceModel, ToolState
 from ow_dem_bridge.comparison import COMPONENTS, compare_forces, model_wrenches
-from ow_mission.mission_config import SCOOP_MODEL_STATE, SCOOP_MODEL_WRENCH
 from ow_power.bagread import TopicMessages
+from ow_runtime.names import SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH
 
 #: The topics the section reads from the bags.
-TOPICS: tuple[str, ...] = (SCOOP_MODEL_STATE, SCOOP_MODEL_WRENCH)
+TOPICS: tuple[str, ...] = (SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH)
 #: The models compared with the live DEM (the paper's Table 6 rows for our scoop).
 COMPARED: tuple[str, ...] = ("table", "balovnev")
 #: The mission's dig steps (names start so).
@@ -73,9 +73,9 @@ def dig_series(
     # pinocchio (its quaternions) only in a live-DEM mission's report, not in every report's.
     from ow_dem_bridge.conversions import tool_state_from_msg
 
-    wrenches = {_stamp(m): m for _, m in messages.get(SCOOP_MODEL_WRENCH, [])}
+    wrenches = {_stamp(m): m for _, m in messages.get(SIM_SCOOP_MODEL_WRENCH, [])}
     paired: list[tuple[float, Any, Any]] = []
-    for _, state in messages.get(SCOOP_MODEL_STATE, []):
+    for _, state in messages.get(SIM_SCOOP_MODEL_STATE, []):
         stamp = _stamp(state)
         wrench = wrenches.get(stamp)
         if wrench is not None and state.depth > 0.0:
@@ -154,8 +154,8 @@ def live_dem_section(
     document["live_dem"] = {"digs": [dig_summary(s, models) for s in series]}
     if not series:
         return (
-            f"no {SCOOP_MODEL_STATE} / {SCOOP_MODEL_WRENCH} with the scoop in the ground during "
-            "a dig in the bags: no live DEM forces."
+            f"no {SIM_SCOOP_MODEL_STATE} / {SIM_SCOOP_MODEL_WRENCH} with the scoop in the ground "
+            "during a dig in the bags: no live DEM forces."
         )
     return None
 

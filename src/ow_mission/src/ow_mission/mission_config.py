@@ -26,6 +26,7 @@ from ow_description.description import (
 from ow_mission.errors import ConfigError
 from ow_mission.fault_schedule import MISSION_STEPS, ScheduledFault, parse_schedule
 from ow_power.config import DEFAULT_RECORD_TOPICS
+from ow_runtime.names import SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH
 from ow_runtime.params import Params, suggest
 
 #: The default mission file shipped with the workspace.
@@ -40,20 +41,16 @@ MAX_STEP_DEPTH = min(MAX_GRIND_DEPTH, MAX_SCOOP_DEPTH)
 TERRAIN_FORCES = (*LOCAL_MODEL_NAMES, LIVE_MODEL_NAME)
 #: s (wall), the default ``step_timeout_s`` with the live DEM: a dig costs minutes of wall time.
 LIVE_DEM_STEP_TIMEOUT_S = 3600.0
-#: The simulation's terrain-force model state and wrench of the scoop (``ow_msgs/ToolState``,
-#: ``geometry_msgs/WrenchStamped``, published with every /sim/scoop_state): a live-DEM mission
-#: records them for its report's live forces (:mod:`ow_mission.live_dem_report`).
-SCOOP_MODEL_STATE = "/sim/scoop_model_state"
-SCOOP_MODEL_WRENCH = "/sim/scoop_model_wrench"
 #: The live DEM's defaults under the mission's ``node_params`` (the user's go on top): the arm
 #: services wait for each joint state up to 10 min of wall time (not 5 s), since the simulation
 #: waits for the DEM: a dig's first exchange may wait for a template bed to settle (first use);
 #: the scoop's model state and wrench are recorded, at every physics step (100 Hz, not 10 Hz:
-#: each a DEM exchange while the scoop digs), for the report.
+#: each a DEM exchange while the scoop digs), for the report's live forces
+#: (:mod:`ow_mission.live_dem_report`).
 LIVE_DEM_NODE_PARAMS: dict[str, dict[str, Any]] = {
     "arm_services": {"execution": {"joint_state_timeout_s": 600.0}},
     "sim": {"tool_state_rate_hz": 100.0},
-    "record": {"topics": [*DEFAULT_RECORD_TOPICS, SCOOP_MODEL_STATE, SCOOP_MODEL_WRENCH]},
+    "record": {"topics": [*DEFAULT_RECORD_TOPICS, SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH]},
 }
 
 #: How the mission is started.

@@ -19,12 +19,13 @@ import numpy.typing as npt
 
 from ow_mission.errors import ReplayError
 from ow_mission.plots import _pyplot
+from ow_regolith.budget import HOLDING_ACCOUNTS
 
 FloatArray = npt.NDArray[np.float64]
 UIntArray = npt.NDArray[np.uint64]
 
-#: The accounts the excavated volume is in (ow_msgs/RegolithBudget's order), stacked so.
-PARTS = ("in_scoop", "in_dock", "ingested", "spilled", "deposited")
+#: The accounts the excavated volume is in (their RegolithBudget fields), stacked in this order.
+PARTS = tuple(account.value for account in HOLDING_ACCOUNTS)
 #: cm³ per µm³: the figure's unit (1 cm³ = 1e-6 m³) from the budget's exact one (1e-18 m³).
 CM3_PER_UM3 = 1e-12
 PART_COLOURS = {

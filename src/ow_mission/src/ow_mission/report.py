@@ -38,6 +38,7 @@ from ow_mission.stills import StillsRendering, plan_stills
 from ow_mission.workspace_capture import capture_figure
 from ow_power.bagread import TopicMessages, read_messages
 from ow_power.errors import BagReadError
+from ow_regolith.budget import Account
 from ow_runtime.names import MATERIAL_INGESTED, REGOLITH_BUDGET
 
 if TYPE_CHECKING:
@@ -48,8 +49,6 @@ if TYPE_CHECKING:
 #: The regolith's topics the sample section reads: the budget (latched, at each change) and the
 #: ground truth of each ingestion (OceanWATERS' ow_materials/BulkExcavation).
 SAMPLE_TOPICS = (REGOLITH_BUDGET, MATERIAL_INGESTED)
-#: The accounts of ow_msgs/RegolithBudget, in its order.
-BUDGET_ACCOUNTS = ("excavated", "in_scoop", "in_dock", "ingested", "spilled", "deposited")
 
 #: Processes rendering the stills and the replay: the stills in one, the replay in the other,
 #: which writes its GIF too (its frames never come to this process).
@@ -424,7 +423,7 @@ def sample_summary(messages: TopicMessages) -> dict[str, Any] | None:
     if not budgets:
         return None
     last = budgets[-1][1]
-    accounts = {name: getattr(last, name) for name in BUDGET_ACCOUNTS}
+    accounts = {a.value: getattr(last, a.value) for a in Account}  # RegolithBudget's fields
     ingested = accounts["ingested"]
     volume = float(ingested.volume)
 

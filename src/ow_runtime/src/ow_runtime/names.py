@@ -90,6 +90,10 @@ BATTERY_TEMPERATURE = "/battery_temperature"
 FLAGS_JOINT_STATES = "/flags/joint_states"
 SIM_SCOOP_WRENCH = "/sim/scoop_wrench"
 SIM_GRINDER_WRENCH = "/sim/grinder_wrench"
+#: The scoop's terrain-force model state and wrench (ow_msgs/ToolState, geometry_msgs/
+#: WrenchStamped, same stamp): with the live DEM, each pair one exchange.
+SIM_SCOOP_MODEL_STATE = "/sim/scoop_model_state"
+SIM_SCOOP_MODEL_WRENCH = "/sim/scoop_model_wrench"
 SIM_RESUME = "/sim/resume"
 
 # The regolith the simulation follows (ow_regolith in the sim node; docs/regolith.md).
