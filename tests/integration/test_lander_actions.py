@@ -1,6 +1,6 @@
 """OceanWATERS' own ow_lander actions (ow_lander.msg) on the real stack, through actionlib's stock
 SimpleActionClient: Pan and Tilt move one mast joint and end with OceanWATERS' texts, refusals
-included; ActivateComms draws 9.6 W on /power for its duration; GuardedMove finds the ground
+included; ActivateComms draws 9.6 W on /power for exactly its duration; GuardedMove finds the ground
 (or reports that it did not), and a cancel or ArmStop ends it."""
 
 from __future__ import annotations
@@ -34,6 +34,8 @@ from ow_lander.msg import (
     TiltGoal,
 )
 from ow_msgs.msg import Power
+from ow_msgs.srv import SetLoad
+from ow_power.loads import SET_LOAD_SERVICE
 
 #: s of sim time a server gets to appear, and a goal to end (the simulation runs at 5x).
 SERVER_WAIT_S = 300.0
@@ -48,8 +50,6 @@ P0_W = 43.0
 
 @pytest.fixture(scope="module")
 def stack(ros_stack, start_lander):
-    # 5x, not 20x: the comms load takes effect when /electrical_power reaches the power node, a
-    # few ms of wall time after the goal, and the energy test allows 0.5 s of sim time for it.
     start_lander(
         sim={"real_time_factor": 5.0},
         arm={"execution": {"lockstep": True}},  # contact found at the same place at any load
@@ -61,7 +61,9 @@ def stack(ros_stack, start_lander):
         "pan_tilt",
         wait_for_topics=["/Pan/status", "/Tilt/status", "/ActivateComms/status"],
     )
-    ros_stack.start_node("ow_power", "power", params={"auxiliary_power_w": P0_W})
+    ros_stack.start_node(
+        "ow_power", "power", params={"auxiliary_power_w": P0_W}, wait_for_topics=["/power"]
+    )
     return ros_stack
 
 
@@ -185,11 +187,26 @@ def test_activate_comms_draws_9_6_w_on_the_battery_for_its_duration(stack):
     loaded = t[auxiliary > P0_W]
     assert auxiliary[0] == P0_W and auxiliary[-1] == P0_W  # drawn once, then removed
     assert np.all(auxiliary[(t >= loaded[0]) & (t <= loaded[-1])] > P0_W)
-    # 9.6 W over the duration, give or take the time /electrical_power takes to reach the power
-    # node (0.5 s of sim time allowed), as /power integrates it into its energy.
-    assert loaded[-1] - loaded[0] == pytest.approx(4.0, abs=0.5)
+    # Exactly the samples of (start, start + 4 s], at any machine load: the node holds the
+    # simulation where the load starts and ends.
+    period = float(np.median(np.diff(t)))
+    assert len(loaded) == round(4.0 / period)
+    assert loaded[-1] - loaded[0] == pytest.approx(4.0 - period, abs=1e-6)
     extra_j = float(np.sum((auxiliary[1:] - P0_W) * np.diff(t)))
-    assert extra_j == pytest.approx(9.6 * 4.0, abs=9.6 * 0.5)
+    assert extra_j == pytest.approx(9.6 * 4.0, rel=1e-6)
+
+
+def test_the_power_node_refuses_a_load_naming_the_value_and_keeps_the_one_it_had(stack):
+    set_load = rospy.ServiceProxy(SET_LOAD_SERVICE, SetLoad)
+    now = rospy.Time.from_sec(rospy.get_time())
+    reply = set_load(source="/tester", power_w=-2.0, now=True, since=now)
+    assert not reply.success
+    assert "load of /tester = -2.0 W is not a finite number >= 0" in reply.message
+    reply = set_load(source="/tester", power_w=1.0, now=False, since=rospy.Time.from_sec(0.5))
+    assert not reply.success
+    assert "load of /tester since 0.500000 s: the power model has integrated up to" in reply.message
+    msg = rospy.wait_for_message("/power", Power, timeout=10)
+    assert msg.auxiliary_power == P0_W
 
 
 @pytest.mark.parametrize(

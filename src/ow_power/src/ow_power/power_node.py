@@ -11,10 +11,11 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from ow_msgs.msg import Power
+from ow_msgs.srv import SetLoad, SetLoadRequest, SetLoadResponse
 from ow_power.config import PowerConfig
 from ow_power.conversions import joint_state_fields, power_message
 from ow_power.errors import ConfigError, PowerError
-from ow_power.loads import LOADS_TOPIC, LoadSum
+from ow_power.loads import LOADS_TOPIC, SET_LOAD_SERVICE, LoadSum
 from ow_power.model import PowerIntegrator
 from ow_runtime.batched_publisher import BatchedPublisher
 from ow_runtime.names import EVERY_MESSAGE
@@ -43,6 +44,10 @@ class PowerNode:
             ``/electrical_power`` (std_msgs/Float64, W, latched by each publisher): the loads a
             node draws besides the motors (:mod:`ow_power.loads`; the mast's ActivateComms),
             added to P0 from the next joint state on.
+        Services:
+            ``/power/set_load`` (ow_msgs/SetLoad): a load from a given sim time on, in the model
+            when the call returns (:mod:`ow_power.loads`); refused naming the value when it is
+            negative, not finite, or dated before a sample already published.
         Publishes:
             ``power`` (ow_msgs/Power, written in the callback): one message per usable
             joint state, stamped with its stamp; energies accumulate from the node's start;
@@ -76,6 +81,7 @@ class PowerNode:
         self._subscriber = rospy.Subscriber(
             "joint_states", JointState, self._on_joint_states, queue_size=EVERY_MESSAGE
         )
+        self._set_load = rospy.Service(SET_LOAD_SERVICE, SetLoad, self._on_set_load)
 
     def _on_load(self, msg: Float64) -> None:
         publisher = msg._connection_header.get("callerid", "?")
@@ -85,11 +91,20 @@ class PowerNode:
         except PowerError as exc:
             rospy.logwarn(f"power: {LOADS_TOPIC} ignored: {exc}")
 
+    def _on_set_load(self, request: SetLoadRequest) -> SetLoadResponse:
+        since = None if request.now else request.since.to_sec()
+        try:
+            with self._loads_lock:
+                self._loads.update(request.source, request.power_w, since)
+        except PowerError as exc:
+            return SetLoadResponse(success=False, message=str(exc))
+        return SetLoadResponse(success=True, message="")
+
     def _on_joint_states(self, msg: JointState) -> None:
         stamp_s, names, velocity, effort = joint_state_fields(msg)
         skipped = self._integrator.skipped_intervals
         with self._loads_lock:
-            load_w = self._loads.total_w
+            load_w = self._loads.at(stamp_s)
         try:
             sample = self._integrator.update(stamp_s, names, velocity, effort, load_w)
         except PowerError as exc:

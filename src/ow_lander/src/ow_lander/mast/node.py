@@ -113,8 +113,13 @@ class PanTiltNode:
     Publications:
         /ant_pan_position_controller/command, /ant_tilt_position_controller/command
             (std_msgs/Float64): rad, the joints' set-points.
-        /electrical_power (std_msgs/Float64, W, latched): the communication load
+        /electrical_power (std_msgs/Float64, W, latched): the communication load, when no
+            lockstep simulation or power node is there to take it exactly
             (:class:`~ow_lander.mast.comms_node.CommsServer`).
+
+    Calls:
+        /power/set_load (ow_msgs/SetLoad), /sim/lockstep_register: the communication load,
+            exact in sim time (:class:`~ow_lander.mast.comms_node.CommsServer`).
     """
 
     def __init__(self) -> None:
