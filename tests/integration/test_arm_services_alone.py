@@ -32,7 +32,13 @@ GOALS = [
 
 @pytest.fixture(scope="module")
 def arm_services(ros_stack):
-    return ros_stack.start_node("ow_lander", "arm_services", wait_for_topics=["/ArmUnstow/status"])
+    # Half a second of waiting for a joint state, not the default 5: none comes here.
+    return ros_stack.start_node(
+        "ow_lander",
+        "arm_services",
+        params={"execution": {"joint_state_timeout_s": 0.5}},
+        wait_for_topics=["/ArmUnstow/status"],
+    )
 
 
 @pytest.mark.parametrize(("name", "goal"), GOALS, ids=[g[0] for g in GOALS])
