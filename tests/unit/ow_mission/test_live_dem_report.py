@@ -1,6 +1,6 @@
 """The live DEM's part of a mission report on synthetic bag messages: the NRMSD (the paper's
-Table 6 metric), the digs' in-ground states paired with their wrenches by stamp, and the section
-only for ``terrain_forces: yade`` missions."""
+Table 6 metric), the digs' in-ground states paired with their wrenches by stamp, the section only
+for ``terrain_forces: yade`` missions, and its figure (the paper's Figure 19 for our scoop)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,16 @@ import pytest
 
 from ow_dem_bridge.api import ToolState, Wrench
 from ow_dem_bridge.comparison import compare_forces, nrmsd
-from ow_mission.live_dem_report import dig_series, dig_summary, live_dem_section, markdown_lines
-from ow_mission.report import step_windows
+from ow_mission.live_dem_plot import plot_live_dem
+from ow_mission.live_dem_report import (
+    FIGURE,
+    dig_series,
+    dig_summary,
+    live_dem_section,
+    markdown_lines,
+)
+from ow_mission.report import live_dem_part, step_windows
+from ow_mission.report_files import Figures
 from ow_runtime.names import SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH
 
 TIP = np.array([0.1, 0.0, 0.08])
@@ -136,3 +144,40 @@ def test_the_section_is_made_for_live_dem_missions_only():
     lines = markdown_lines(document)
     assert lines[0].startswith("## Live DEM forces")
     assert any("| dig_spoil | 5 |" in line for line in lines)
+
+
+def test_the_report_draws_the_figure_with_the_models_on_the_recorded_states(tmp_path):
+    import cv2
+
+    steps = [
+        {"step": "dig_spoil", "sim_start_s": 10.0, "sim_end_s": 20.0},
+        {"step": "dig_sample", "sim_start_s": 30.0, "sim_end_s": 40.0},
+    ]
+    document = {"config": {"terrain_forces": "yade"}, "steps": steps}
+    times = [11.0 + 0.01 * k for k in range(20)] + [31.0 + 0.01 * k for k in range(20)]
+    figures = Figures()
+    messages = _messages(times, [0.03] * 40)
+    assert live_dem_part(tmp_path, document, messages, figures) is None
+    assert figures.files == {"live_dem": FIGURE}
+    assert "Figure 19" in figures.captions["live_dem"]
+    assert [d["step"] for d in document["live_dem"]["digs"]] == ["dig_spoil", "dig_sample"]
+    image = cv2.imread(str(tmp_path / FIGURE))
+    assert image is not None
+    assert image.shape[:2] == (680, 1300)  # two digs: 13 x (2 x 3.0 + 0.8) in at 100 dpi
+    # Not drawn when the report only works out the numbers, nor without live forces.
+    (tmp_path / FIGURE).unlink()
+    undrawn = Figures(draw=False)
+    assert live_dem_part(tmp_path, document, messages, undrawn) is None
+    assert not (tmp_path / FIGURE).exists() and not undrawn.files
+    note = live_dem_part(tmp_path, document, {}, figures := Figures())
+    assert note is not None and "no live DEM forces" in note
+    assert not (tmp_path / FIGURE).exists() and not figures.files
+
+
+def test_the_figure_refuses_no_dig_and_a_score_list_of_another_length(tmp_path):
+    with pytest.raises(ValueError, match="no dig to draw"):
+        plot_live_dem([], [], tmp_path / "x.png")
+    dig = ("dig_spoil", np.arange(3.0), np.zeros((3, 6)), {"table": np.ones((3, 6))})
+    with pytest.raises(ValueError, match="0 NRMSD entries for 1 digs"):
+        plot_live_dem([dig], [], tmp_path / "x.png")
+    assert not (tmp_path / "x.png").exists()

@@ -206,7 +206,7 @@ def summarise(records: Mapping[int, Mapping[str, Any]], missions: int) -> dict[s
 
 def sample_statistics(records: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     """The delivered samples over the missions whose report has a sample section (the bags'
-    regolith budget, :func:`ow_mission.report.sample_summary`): ``delivered_volume_m3`` (the
+    regolith budget, :func:`ow_mission.sample_report.sample_summary`): ``delivered_volume_m3`` (the
     volume ingested from the dock, 0 for a mission that ingested nothing), ``top_layer_share``
     (over the missions that ingested a sample) and ``missions_with_sample``."""
     samples = [r["sample"] for r in records if r.get("sample")]

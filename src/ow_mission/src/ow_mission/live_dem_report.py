@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -29,6 +30,15 @@ from ow_runtime.names import SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH
 TOPICS: tuple[str, ...] = (SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH)
 #: The models compared with the live DEM (the paper's Table 6 rows for our scoop).
 COMPARED: tuple[str, ...] = ("table", "balovnev")
+#: The figure (relative to the run directory), its role in the report and its caption.
+FIGURE = "live_dem_forces.png"
+FIGURE_ROLE = "live_dem"
+FIGURE_CAPTION = (
+    "The scoop's force in the ground during each dig (l_scoop frame, N, against the dig's sim "
+    "time): the live DEM's (solid), and what the shipped table (dashed) and Balovnev (dotted) "
+    "give for the same recorded states, with their NRMSD against the live DEM (the seed "
+    "paper's Figure 19 and Table 6 for our scoop)."
+)
 #: The mission's dig steps (names start so).
 DIG_STEP_PREFIX = "dig_"
 
@@ -109,8 +119,13 @@ def dig_series(
     return series
 
 
-def dig_summary(series: DigSeries, models: Mapping[str, TerrainForceModel]) -> dict[str, Any]:
-    """The live forces of one dig and the compared models' NRMSD against them.
+def dig_summary(
+    series: DigSeries,
+    models: Mapping[str, TerrainForceModel],
+    others: Mapping[str, FloatArray] | None = None,
+) -> dict[str, Any]:
+    """The live forces of one dig and the compared models' NRMSD against them (``others``: the
+    models' wrench rows for the series' states, when already computed).
 
     Returns:
         ``step``, ``samples``, ``sim_start_s``, ``sim_end_s``, ``mean_live_n`` and
@@ -119,7 +134,8 @@ def dig_summary(series: DigSeries, models: Mapping[str, TerrainForceModel]) -> d
         component does not vary).
     """
     live = series.wrenches
-    others = {name: model_wrenches(model, series.states) for name, model in models.items()}
+    if others is None:
+        others = {name: model_wrenches(model, series.states) for name, model in models.items()}
     return {
         "step": series.step,
         "samples": len(series.states),
@@ -137,11 +153,16 @@ def dig_summary(series: DigSeries, models: Mapping[str, TerrainForceModel]) -> d
 
 
 def live_dem_section(
-    document: dict[str, Any], messages: TopicMessages, windows: Sequence[tuple[str, float, float]]
+    document: dict[str, Any],
+    messages: TopicMessages,
+    windows: Sequence[tuple[str, float, float]],
+    figure_path: Path | None = None,
 ) -> str | None:
     """``document['live_dem']`` for a ``terrain_forces: yade`` mission (nothing otherwise): the
     digs' live forces and the comparison, the steps' ``windows`` (name, start s, end s: the
-    report's ``step_windows``) naming the digs; a note when the bags hold no live forces."""
+    report's ``step_windows``) naming the digs; with ``figure_path``, also the figure there
+    (:func:`ow_mission.live_dem_plot.plot_live_dem`; :data:`FIGURE_CAPTION` says what it shows).
+    A note when the bags hold no live forces (and no figure)."""
     if document.get("config", {}).get("terrain_forces") != LIVE_MODEL_NAME:
         return None
     from ow_dem_bridge.geometry import load_tool
@@ -151,11 +172,23 @@ def live_dem_section(
     tip = load_tool(URDF_PATH, SCOOP_LINK).tip
     series = dig_series(messages, windows, tip)
     models = {name: make_model(name) for name in COMPARED}
-    document["live_dem"] = {"digs": [dig_summary(s, models) for s in series]}
+    others = [
+        {name: model_wrenches(model, s.states) for name, model in models.items()} for s in series
+    ]
+    summaries = [dig_summary(s, models, o) for s, o in zip(series, others, strict=True)]
+    document["live_dem"] = {"digs": summaries}
     if not series:
         return (
             f"no {SIM_SCOOP_MODEL_STATE} / {SIM_SCOOP_MODEL_WRENCH} with the scoop in the ground "
             "during a dig in the bags: no live DEM forces."
+        )
+    if figure_path is not None:
+        from ow_mission.live_dem_plot import plot_live_dem
+
+        plot_live_dem(
+            [(s.step, s.times, s.wrenches, o) for s, o in zip(series, others, strict=True)],
+            [summary["nrmsd"] for summary in summaries],
+            figure_path,
         )
     return None
 

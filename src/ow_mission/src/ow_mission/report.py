@@ -7,7 +7,7 @@ across the trench, with the requested depths), ``regolith.png`` (where the excav
 over the mission: :mod:`ow_mission.regolith_plot`), ``guarded_move.png`` (the ground detector, the
 paper's Figure 11), stills in ``renders/`` and ``replay.gif`` (the whole mission, animated),
 ``battery.png`` and the faults section (:mod:`ow_mission.fault_report`), the delivered sample
-(:func:`sample_summary`: volume, composition, top layer's share, the regolith budget), then
+(:mod:`ow_mission.sample_report`: volume, composition, top layer's share, the regolith budget), then
 ``report.md`` linking each figure that exists, and ``report.json`` with the energies from the bags
 and the figures' file names. ``python -m ow_mission.report RUN_DIR`` rebuilds them for a run.
 
@@ -34,21 +34,17 @@ from ow_mission.bag_prefetch import BagPrefetch
 from ow_mission.recording import Recording, recording_from_messages
 from ow_mission.replay import ReplayRendering, render_pool, start_replay
 from ow_mission.report_files import Figures, markdown, write_report_files
+from ow_mission.sample_report import SAMPLE_TOPICS, sample_section
 from ow_mission.stills import StillsRendering, plan_stills
 from ow_mission.workspace_capture import capture_figure
 from ow_power.bagread import TopicMessages, read_messages
 from ow_power.errors import BagReadError
-from ow_regolith.budget import Account
-from ow_runtime.names import MATERIAL_INGESTED, REGOLITH_BUDGET
+from ow_runtime.names import REGOLITH_BUDGET
 
 if TYPE_CHECKING:
     from ow_mission.mission_config import MissionConfig
     from ow_power.analysis import Analysis
 
-
-#: The regolith's topics the sample section reads: the budget (latched, at each change) and the
-#: ground truth of each ingestion (OceanWATERS' ow_materials/BulkExcavation).
-SAMPLE_TOPICS = (REGOLITH_BUDGET, MATERIAL_INGESTED)
 
 #: Processes rendering the stills and the replay: the stills in one, the replay in the other,
 #: which writes its GIF too (its frames never come to this process).
@@ -101,7 +97,7 @@ def _attempt(figures: Figures, role: str, make: Callable[[], str | None]) -> Non
 def read_report_messages(bags: Sequence[Path], joint_states: bool = True) -> TopicMessages:
     """Every topic the report uses (:data:`ow_power.analysis.TOPICS`,
     :data:`ow_mission.recording.TOPICS`, :data:`ow_mission.fault_report.TOPICS`,
-    :data:`SAMPLE_TOPICS`), read from
+    :data:`~ow_mission.sample_report.SAMPLE_TOPICS`), read from
     ``bags`` in one pass; with ``joint_states`` False, all but ``/joint_states`` (half the
     messages): what the report's numbers need when ``/power`` and the detector were recorded
     (:func:`write_run_report` with ``draw=False`` reads them when not).
@@ -262,6 +258,22 @@ def regolith_figure(
     return None
 
 
+def live_dem_part(
+    run_dir: Path, document: dict[str, Any], messages: TopicMessages, figures: Figures
+) -> str | None:
+    """A ``terrain_forces: yade`` mission's live DEM section (:mod:`ow_mission.live_dem_report`)
+    and, when ``figures.draw``, its figure; a note when the bags have no live forces."""
+    from ow_mission import live_dem_report
+
+    path = run_dir / live_dem_report.FIGURE if figures.draw else None
+    windows = step_windows(document)
+    note = live_dem_report.live_dem_section(document, messages, windows, path)
+    if path is not None and path.is_file():
+        figures.files[live_dem_report.FIGURE_ROLE] = live_dem_report.FIGURE
+        figures.captions[live_dem_report.FIGURE_ROLE] = live_dem_report.FIGURE_CAPTION
+    return note
+
+
 def guarded_move_figure(
     run_dir: Path, document: dict[str, Any], recording: Recording, figures: Figures
 ) -> str | None:
@@ -406,64 +418,6 @@ def faults_section(
         f"remaining useful life ({RUL_TOPIC}, ProgPy's prediction), each step shaded; red "
         "dashed: a scheduled fault applied, orange dotted: a fault bit first set."
     )
-    return None
-
-
-def sample_summary(messages: TopicMessages) -> dict[str, Any] | None:
-    """The delivered sample, from the last ``/regolith/budget`` of the bags' ``messages`` (None
-    when they have none): what was ingested from the dock (``volume_m3``, ``mass_kg``, the
-    share of the volume of each material in ``composition`` and of each terrain layer in
-    ``layers``, ``top_layer`` and ``top_layer_share``; shares None when nothing was ingested),
-    ``budget_m3`` (where every volume the scoop took went: the six accounts) and
-    ``dock_share`` (the part of the excavated volume that reached the dock: ingested + in the
-    dock, over excavated). ``ground_truth`` is the last ``/ground_truth/material_ingested``:
-    OceanWATERS' BulkExcavation (volume m^3, composition by material), or None.
-    """
-    budgets = messages.get(REGOLITH_BUDGET, [])
-    if not budgets:
-        return None
-    last = budgets[-1][1]
-    accounts = {a.value: getattr(last, a.value) for a in Account}  # RegolithBudget's fields
-    ingested = accounts["ingested"]
-    volume = float(ingested.volume)
-
-    def shares(names: Sequence[str], volumes: Sequence[float]) -> dict[str, float] | None:
-        if volume <= 0.0:
-            return None
-        return {str(n): float(v) / volume for n, v in zip(names, volumes, strict=True)}
-
-    layers = shares(list(last.layers), list(ingested.layer_volumes))
-    excavated = float(accounts["excavated"].volume)
-    summary: dict[str, Any] = {
-        "ingested": volume > 0.0,
-        "volume_m3": volume,
-        "mass_kg": float(ingested.mass),
-        "composition": shares(list(last.materials), list(ingested.material_volumes)),
-        "layers": layers,
-        "top_layer": str(last.top_layer),
-        "top_layer_share": None if layers is None else layers.get(str(last.top_layer), 0.0),
-        "budget_m3": {name: float(a.volume) for name, a in accounts.items()},
-        "dock_share": (
-            (volume + float(accounts["in_dock"].volume)) / excavated if excavated > 0.0 else None
-        ),
-        "ground_truth": None,
-    }
-    truths = messages.get(MATERIAL_INGESTED, [])
-    if truths:
-        truth = truths[-1][1]
-        summary["ground_truth"] = {
-            "volume_m3": float(truth.volume),
-            "composition": {str(c.name): float(c.proportion) for c in truth.composition},
-            "stamp_s": float(truth.header.stamp.sec) + 1e-9 * float(truth.header.stamp.nanosec),
-        }
-    return summary
-
-
-def sample_section(document: dict[str, Any], messages: TopicMessages) -> str | None:
-    """``document['sample']`` (:func:`sample_summary`); a note when the bags hold no budget."""
-    document["sample"] = sample_summary(messages)
-    if document["sample"] is None:
-        return f"no {REGOLITH_BUDGET} in the bags: no sample section."
     return None
 
 
@@ -652,10 +606,7 @@ def write_run_report(
             _figures_from_bags(run_dir, document, bags, messages, figures, renders)
         if messages is not None:
             _attempt(figures, "sample", functools.partial(sample_section, document, messages))
-            from ow_mission.live_dem_report import live_dem_section
-
-            windows = step_windows(document)
-            live_dem = functools.partial(live_dem_section, document, messages, windows)
+            live_dem = functools.partial(live_dem_part, run_dir, document, messages, figures)
             _attempt(figures, "live_dem", live_dem)
             _attempt(
                 figures,
