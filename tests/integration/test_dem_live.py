@@ -55,6 +55,8 @@ SMALL = {
 DIG = {"y": 0.0, "depth": 0.04, "length": 0.1, "ground_position": GROUND}
 #: s of wall time a dig may take.
 DIG_TIMEOUT_S = 1800.0
+#: Every /sim/dem_digs message of the module's stack (ow_msgs/DemDig), in arrival order.
+DEM_DIGS: list[Any] = []
 
 
 def _children(pid: int) -> list[int]:
@@ -87,8 +89,12 @@ def live_stack(ros_stack: Any, start_lander: Any, tmp_path_factory: pytest.TempP
         arm_services=["/arm/unstow", "/arm/dig_linear", "/arm/grind"],
         sim_topics=["/joint_states", "/sim/scoop_model_state", "/sim/scoop_model_wrench"],
     )
+    from ow_msgs.msg import DemDig
     from ow_msgs.srv import Unstow
+    from ow_runtime.names import SIM_DEM_DIGS
 
+    DEM_DIGS.clear()
+    subscribe(SIM_DEM_DIGS, DemDig, DEM_DIGS.append)
     unstow = ros_stack.service("/arm/unstow", Unstow)(delete_prev_traj=False)
     assert unstow.success, unstow.message
     return ros_stack
@@ -157,6 +163,12 @@ def test_a_dig_runs_live_and_a_killed_dem_leaves_the_stack_running(live_stack):
         if b"yade_live" in Path(f"/proc/{p}/cmdline").read_bytes()
     ]
     assert len(yade) == 1
+    # The dig's end is published with its sample: the spheres in the scoop, out of its bed.
+    (first,) = DEM_DIGS
+    assert (first.tool, first.error) == ("scoop", "")
+    assert first.exchanges >= len(in_ground) and first.particles > 0
+    assert 0 < first.sample_particles < first.particles and first.sample_volume > 0.0
+    assert first.header.stamp.to_sec() > first.start_time
 
     killed: list[float] = []
 
@@ -177,6 +189,9 @@ def test_a_dig_runs_live_and_a_killed_dem_leaves_the_stack_running(live_stack):
     assert sim.alive()
     log = sim.log()
     assert "live DEM: the dig that started at" in log and "killed by signal 9" in log
+    # The failed dig is published too, with why and without a sample.
+    failed = DEM_DIGS[1]
+    assert "killed by signal 9" in failed.error and failed.sample_particles == 0
 
 
 def test_a_dig_after_a_grind_to_its_depth_digs_the_cuttings_live(live_stack):

@@ -198,6 +198,11 @@ def test_a_live_dig_resists_the_cut_in_lockstep(first_run):
     assert wrenches[10:, 0].mean() < -0.1
     assert np.all(np.isfinite(wrenches))
     assert record.sample is not None and record.sample["sample_particles"] >= 0
+    # The simulation takes each finished dig once, for /sim/dem_digs.
+    (finished,) = model.take_finished()
+    assert finished["sample"] == record.sample and finished["error"] is None
+    assert finished["exchanges"] == EXCHANGES and finished["particles"] == record.particles
+    assert model.take_finished() == []
 
 
 @pytest.mark.yade
@@ -246,6 +251,8 @@ def test_a_killed_dem_process_fails_the_dig_with_a_clear_error_and_the_next_dig_
         assert "t=0.030 s of the dig that started at t=0.000 s (exchange 4)" in message
         assert f"the YADE process (pid {pid})" in message and "killed by signal 9" in message
         assert model.digs[0].error is not None and model.worker_pid is None
+        (failed,) = model.take_finished()  # reported at once, without a sample
+        assert failed["sample"] is None and "killed by signal 9" in failed["error"]
         # The rest of that dig gets the fallback (the table); nothing raises again.
         state = cut_state(4)
         assert np.array_equal(model.wrench(state).force, table.wrench(state).force)

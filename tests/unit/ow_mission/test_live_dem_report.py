@@ -22,7 +22,7 @@ from ow_mission.live_dem_report import (
 )
 from ow_mission.report import live_dem_part, step_windows
 from ow_mission.report_files import Figures
-from ow_runtime.names import SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH
+from ow_runtime.names import SIM_DEM_DIGS, SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH
 
 TIP = np.array([0.1, 0.0, 0.08])
 
@@ -181,3 +181,52 @@ def test_the_figure_refuses_no_dig_and_a_score_list_of_another_length(tmp_path):
     with pytest.raises(ValueError, match="0 NRMSD entries for 1 digs"):
         plot_live_dem([dig], [], tmp_path / "x.png")
     assert not (tmp_path / "x.png").exists()
+
+
+def _dem_dig(start: float, particles: int, volume: float, error: str = "") -> SimpleNamespace:
+    return SimpleNamespace(
+        start_time=start,
+        particles=700,
+        loose_particles=250,
+        sample_particles=particles,
+        sample_volume=volume,
+        sample_mass=volume * 1500.0,
+        error=error,
+    )
+
+
+def test_each_dig_step_shows_the_sample_of_its_last_dem_dig_and_every_failure():
+    steps = [
+        {"step": "dig_spoil", "sim_start_s": 10.0, "sim_end_s": 20.0},
+        {"step": "dig_sample", "sim_start_s": 30.0, "sim_end_s": 40.0},
+    ]
+    document = {"config": {"terrain_forces": "yade"}, "steps": steps}
+    times = [11.0 + 0.01 * k for k in range(5)] + [31.0 + 0.01 * k for k in range(5)]
+    messages = _messages(times, [0.03] * 10)
+    messages[SIM_DEM_DIGS] = [
+        (0, _dem_dig(11.0, 10, 2e-5)),
+        (0, _dem_dig(15.0, 21, 3.2e-4)),  # the step's last dig: what the scoop carries out
+        (0, _dem_dig(31.0, 0, 0.0, "the YADE process (pid 7) was killed by signal 9")),
+    ]
+    assert live_dem_section(document, messages, step_windows(document)) is None
+    spoil, sample = document["live_dem"]["digs"]
+    assert spoil["dem"] == {
+        "digs": 2,
+        "particles": 700,
+        "loose_particles": 250,
+        "sample_particles": 21,
+        "sample_volume_m3": 3.2e-4,
+        "sample_mass_kg": pytest.approx(0.48),
+        "errors": [],
+    }
+    assert sample["dem"]["errors"] == ["the YADE process (pid 7) was killed by signal 9"]
+    lines = markdown_lines(document)
+    assert any(line.endswith("| 21 of 700, 320.0, 480.0 |") for line in lines)
+    assert "- **dig_sample: the DEM failed**: the YADE process (pid 7) was killed by signal 9" in (
+        lines
+    )
+    # A bag without /sim/dem_digs (a run from before it) shows no sample.
+    del messages[SIM_DEM_DIGS]
+    live_dem_section(document, messages, step_windows(document))
+    assert document["live_dem"]["digs"][0]["dem"] == {"digs": 0}
+    assert any(line.endswith("| - |") for line in markdown_lines(document))

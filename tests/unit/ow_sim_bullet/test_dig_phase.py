@@ -258,6 +258,7 @@ class EndRecordingLiveModel:
         self.sim: BulletSim | None = None
         self.asked: list[tuple[float, bool]] = []
         self.ended: list[tuple[float, DigPhase]] = []
+        self._finished: list[dict] = []
         self._terrain = None
 
     def attach(self, terrain, step_s, loose_top=None) -> None:
@@ -273,6 +274,11 @@ class EndRecordingLiveModel:
     def dig_ended(self) -> None:
         assert self.sim is not None
         self.ended.append((self.sim.time, self.sim.dig_phase))
+        self._finished.append({"start_time": 0.0, "ended_at": self.sim.time})
+
+    def take_finished(self) -> list[dict]:
+        done, self._finished = self._finished, []
+        return done
 
     def close(self) -> None:
         """Nothing runs beside."""
@@ -301,5 +307,9 @@ def test_a_live_model_is_told_once_when_the_dig_phase_ends(ops):
         assert live.ended == [(turned[0], NOT)]
         digging = [t for t, d in live.asked if d]
         assert digging and max(digging) < turned[0]
+        # The dig it finished waits, stamped at that carve update, for the outputs to publish
+        # (/sim/dem_digs); the model gives each once.
+        assert sim.finished_dem_digs == [(turned[0], {"start_time": 0.0, "ended_at": turned[0]})]
+        assert live.take_finished() == []
     finally:
         sim.close()

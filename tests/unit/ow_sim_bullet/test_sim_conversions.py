@@ -351,3 +351,23 @@ def test_a_trajectory_request_with_velocities_on_some_points_only_is_refused():
     request = TrajectoryRequest.from_msg(trajectory_msg([point(1.0, [0.1, 0.2])]))
     with pytest.raises(CommandError, match="unknown joint"):
         request.build(0.0, ["j_a"])
+
+
+def test_a_dem_dig_message_carries_its_sample_or_its_error():
+    from ow_sim_bullet.conversions import dem_dig_msg
+
+    summary = {
+        "start_time": 112.7,
+        "exchanges": 1856,
+        "particles": 738,
+        "loose_particles": 266,
+        "sample": {"sample_particles": 21.0, "sample_volume_m3": 3.2e-4, "sample_mass_kg": 0.5},
+        "error": None,
+    }
+    msg = dem_dig_msg(131.25, "scoop", summary)
+    assert (msg.header.stamp.secs, msg.header.stamp.nsecs) == (131, 250_000_000)
+    assert (msg.tool, msg.start_time, msg.exchanges, msg.particles) == ("scoop", 112.7, 1856, 738)
+    assert (msg.sample_particles, msg.sample_volume, msg.sample_mass) == (21, 3.2e-4, 0.5)
+    assert msg.error == ""
+    failed = dem_dig_msg(5.0, "scoop", {**summary, "sample": None, "error": "killed"})
+    assert (failed.sample_particles, failed.sample_volume, failed.error) == (0, 0.0, "killed")

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -129,6 +129,13 @@ class LockstepModel(TerrainForceModel, Protocol):
         Raises:
             DemRunError: the model failed while ending the dig.
         """
+        ...
+
+    def take_finished(self) -> list[dict[str, Any]]:
+        """The digs that ended or failed since the last call, oldest first, each as
+        ``LiveDig.summary()`` (``start_time``, ``exchanges``, ``particles``,
+        ``loose_particles``, ``sample`` (None when it failed), ``error`` (None when it did
+        not), ...); the simulation publishes them."""
         ...
 
     def close(self) -> None:

@@ -183,6 +183,8 @@ class LiveDemModel:
         #: every DEM dig so far, the one under way last.
         self.digs: list[LiveDig] = []
         self._dig: LiveDig | None = None
+        #: digs ended or failed since the last :meth:`take_finished`.
+        self._finished: list[LiveDig] = []
         #: the failed dig's last progress: its remaining states get the fallback's wrench.
         self._failed_progress: float | None = None
         self._last_time = -math.inf
@@ -258,6 +260,12 @@ class LiveDemModel:
         """
         self.finish_dig()
 
+    def take_finished(self) -> list[dict[str, Any]]:
+        """The digs that ended (their sample counted) or failed since the last call, oldest
+        first, each as :meth:`LiveDig.summary`."""
+        done, self._finished = self._finished, []
+        return [dig.summary() for dig in done]
+
     def finish_dig(self) -> LiveDig | None:
         """End the DEM dig under way (its sample: the spheres in the scoop); the dig, or None.
 
@@ -277,6 +285,7 @@ class LiveDemModel:
         dig.sample = {
             k: float(reply[k]) for k in ("sample_particles", "sample_volume_m3", "sample_mass_kg")
         }
+        self._finished.append(dig)
         LOG.info(
             "live DEM: the dig that started at t=%.3f s ended after %d exchanges (%.1f s of "
             "wall time); %d spheres in the scoop, %.3g m3",
@@ -517,6 +526,7 @@ class LiveDemModel:
             error,
         )
         dig.error = str(error)
+        self._finished.append(dig)
         self._dig = None
         self._grid = None
         self._failed_progress = self._last_progress

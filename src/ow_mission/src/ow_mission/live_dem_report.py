@@ -24,10 +24,10 @@ import numpy as np
 from ow_dem_bridge.api import LIVE_MODEL_NAME, FloatArray, TerrainForceModel, ToolState
 from ow_dem_bridge.comparison import COMPONENTS, compare_forces, model_wrenches
 from ow_power.bagread import TopicMessages
-from ow_runtime.names import SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH
+from ow_runtime.names import SIM_DEM_DIGS, SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH
 
 #: The topics the section reads from the bags.
-TOPICS: tuple[str, ...] = (SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH)
+TOPICS: tuple[str, ...] = (SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH, SIM_DEM_DIGS)
 #: The models compared with the live DEM (the paper's Table 6 rows for our scoop).
 COMPARED: tuple[str, ...] = ("table", "balovnev")
 #: The figure (relative to the run directory), its role in the report and its caption.
@@ -119,6 +119,27 @@ def dig_series(
     return series
 
 
+def dem_digs(
+    messages: Mapping[str, Sequence[tuple[int, Any]]], start_s: float, end_s: float
+) -> dict[str, Any]:
+    """The DEM digs (``/sim/dem_digs``) that started within a step's ``[start_s, end_s]`` (s,
+    sim): how many, the spheres of the last one's bed (loose ones apart), its sample (the spheres
+    in the scoop when it ended: what the scoop carries out of the step) and every error."""
+    digs = [m for _, m in messages.get(SIM_DEM_DIGS, []) if start_s <= m.start_time <= end_s]
+    if not digs:
+        return {"digs": 0}
+    last = digs[-1]
+    return {
+        "digs": len(digs),
+        "particles": int(last.particles),
+        "loose_particles": int(last.loose_particles),
+        "sample_particles": int(last.sample_particles),
+        "sample_volume_m3": float(last.sample_volume),
+        "sample_mass_kg": float(last.sample_mass),
+        "errors": [str(m.error) for m in digs if m.error],
+    }
+
+
 def dig_summary(
     series: DigSeries,
     models: Mapping[str, TerrainForceModel],
@@ -176,6 +197,9 @@ def live_dem_section(
         {name: model_wrenches(model, s.states) for name, model in models.items()} for s in series
     ]
     summaries = [dig_summary(s, models, o) for s, o in zip(series, others, strict=True)]
+    ends = {step: (start, end) for step, start, end in windows}
+    for summary in summaries:
+        summary["dem"] = dem_digs(messages, *ends[summary["step"]])
     document["live_dem"] = {"digs": summaries}
     if not series:
         return (
@@ -212,8 +236,8 @@ def markdown_lines(document: Mapping[str, Any]) -> list[str]:
         "",
         "| dig | samples | sim s | mean live Fx, Fy, Fz | peak abs F | "
         + " | ".join(f"NRMSD {name} Fx, Fy, Fz" for name in COMPARED)
-        + " |",
-        "|---|---:|---|---|---:|" + "---|" * len(COMPARED),
+        + " | sample: spheres, cm³, g |",
+        "|---|---:|---|---|---:|" + "---|" * len(COMPARED) + "---|",
     ]
     for dig in live["digs"]:
         mean = ", ".join(f"{dig['mean_live_n'][c]:.2f}" for c in COMPONENTS)
@@ -222,6 +246,23 @@ def markdown_lines(document: Mapping[str, Any]) -> list[str]:
             f"| {dig['step']} | {dig['samples']} | {dig['sim_start_s']:.1f}-"
             f"{dig['sim_end_s']:.1f} | {mean} | {dig['peak_force_n']:.2f} | "
             + " | ".join(nrmsd)
-            + " |"
+            + f" | {_sample_cell(dig.get('dem', {}))} |"
         )
+    lines += [
+        "",
+        "The sample is the spheres in the scoop when the step's last DEM dig ended "
+        "(`/sim/dem_digs`), out of its bed's spheres; it is the DEM's own count, beside the "
+        "regolith budget's (which follows the height map).",
+    ]
+    errors = [(d["step"], e) for d in live["digs"] for e in d.get("dem", {}).get("errors", [])]
+    lines += [f"- **{step}: the DEM failed**: {error}" for step, error in errors]
     return [*lines, ""]
+
+
+def _sample_cell(dem: Mapping[str, Any]) -> str:
+    if not dem.get("digs"):
+        return "-"
+    return (
+        f"{dem['sample_particles']} of {dem['particles']}, "
+        f"{dem['sample_volume_m3'] * 1e6:.1f}, {dem['sample_mass_kg'] * 1e3:.1f}"
+    )

@@ -26,7 +26,7 @@ from ow_description.description import (
 from ow_mission.errors import ConfigError
 from ow_mission.fault_schedule import MISSION_STEPS, ScheduledFault, parse_schedule
 from ow_power.config import DEFAULT_RECORD_TOPICS
-from ow_runtime.names import SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH
+from ow_runtime.names import SIM_DEM_DIGS, SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH
 from ow_runtime.params import Params, suggest
 
 #: The default mission file shipped with the workspace.
@@ -46,11 +46,18 @@ LIVE_DEM_STEP_TIMEOUT_S = 3600.0
 #: waits for the DEM: a dig's first exchange may wait for a template bed to settle (first use);
 #: the scoop's model state and wrench are recorded, at every physics step (100 Hz, not 10 Hz:
 #: each a DEM exchange while the scoop digs), for the report's live forces
-#: (:mod:`ow_mission.live_dem_report`).
+#: (:mod:`ow_mission.live_dem_report`), and each DEM dig with its sample (`/sim/dem_digs`).
 LIVE_DEM_NODE_PARAMS: dict[str, dict[str, Any]] = {
     "arm_services": {"execution": {"joint_state_timeout_s": 600.0}},
     "sim": {"tool_state_rate_hz": 100.0},
-    "record": {"topics": [*DEFAULT_RECORD_TOPICS, SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH]},
+    "record": {
+        "topics": [
+            *DEFAULT_RECORD_TOPICS,
+            SIM_SCOOP_MODEL_STATE,
+            SIM_SCOOP_MODEL_WRENCH,
+            SIM_DEM_DIGS,
+        ]
+    },
 }
 
 #: How the mission is started.

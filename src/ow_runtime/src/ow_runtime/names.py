@@ -94,6 +94,8 @@ SIM_GRINDER_WRENCH = "/sim/grinder_wrench"
 #: WrenchStamped, same stamp): with the live DEM, each pair one exchange.
 SIM_SCOOP_MODEL_STATE = "/sim/scoop_model_state"
 SIM_SCOOP_MODEL_WRENCH = "/sim/scoop_model_wrench"
+#: Each dig of a live terrain-force model, when it ends or fails (ow_msgs/DemDig): its sample.
+SIM_DEM_DIGS = "/sim/dem_digs"
 SIM_RESUME = "/sim/resume"
 
 # The regolith the simulation follows (ow_regolith in the sim node; docs/regolith.md).

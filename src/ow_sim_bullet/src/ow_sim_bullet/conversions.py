@@ -19,6 +19,7 @@ import pinocchio as pin
 from geometry_msgs.msg import TransformStamped
 
 from ow_description.terrain import HeightMap
+from ow_msgs.msg import DemDig
 from ow_msgs.msg import HeightMap as HeightMapMsg
 from ow_sim_bullet.errors import CommandError
 from ow_sim_bullet.tool_tracking import FloatArray
@@ -219,3 +220,23 @@ class TrajectoryRequest:
             self.velocities,
             known_joints,
         )
+
+
+def dem_dig_msg(time_s: float, tool: str, summary: dict[str, Any]) -> DemDig:
+    """``ow_msgs/DemDig`` of one live DEM dig (``LiveDig.summary()``), stamped ``time_s`` (s,
+    sim): when the simulation learnt it ended."""
+    sample = summary.get("sample") or {}
+    msg = DemDig(
+        tool=tool,
+        start_time=float(summary["start_time"]),
+        exchanges=int(summary["exchanges"]),
+        particles=int(summary["particles"]),
+        loose_particles=int(summary["loose_particles"]),
+        sample_particles=int(sample.get("sample_particles", 0)),
+        sample_volume=float(sample.get("sample_volume_m3", 0.0)),
+        sample_mass=float(sample.get("sample_mass_kg", 0.0)),
+        error=summary.get("error") or "",
+    )
+    msg.header.stamp = stamp(time_s)
+    msg.header.frame_id = "base_link"
+    return msg

@@ -109,6 +109,8 @@ class SimOutputs:
             (and by :meth:`publish_dig_phase`), or None.
         budget: publisher of the ``ow_msgs/RegolithBudget`` of the regolith, at each change
             (a carve update or an ingestion changed an account; :meth:`publish_budget`), or None.
+        dem_digs: publisher of an ``ow_msgs/DemDig`` for each dig of a live terrain-force
+            model that ended or failed (``BulletSim.finished_dem_digs``), or None.
     """
 
     def __init__(
@@ -121,8 +123,10 @@ class SimOutputs:
         on_clock: Callable[[float], None] | None = None,
         on_dig_phase: Callable[[float, DigPhase], None] | None = None,
         budget: MessagePublisher | None = None,
+        dem_digs: MessagePublisher | None = None,
     ) -> None:
         self.sim = sim
+        self._dem_digs_pub = dem_digs
         self._on_dig_phase = on_dig_phase
         self._budget_pub = budget
         #: the regolith's version last published (-1: none yet).
@@ -218,6 +222,11 @@ class SimOutputs:
         if sim.dig_phase is not self._dig_phase:
             self.publish_dig_phase()
         self.publish_budget_if_changed()
+        if sim.finished_dem_digs:
+            digs, sim.finished_dem_digs = sim.finished_dem_digs, []
+            for time_s, summary in digs:
+                if self._dem_digs_pub is not None:
+                    self._dem_digs_pub.publish(conversions.dem_dig_msg(time_s, "scoop", summary))
         self.publish_terrain_if_due()
 
     def publish_dig_phase(self) -> None:

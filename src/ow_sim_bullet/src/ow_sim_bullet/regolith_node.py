@@ -9,12 +9,12 @@ from typing import Any
 import rospy
 
 from ow_materials.msg import BulkExcavation
-from ow_msgs.msg import RegolithBudget
+from ow_msgs.msg import DemDig, RegolithBudget
 from ow_msgs.srv import IngestSample, IngestSampleResponse
 from ow_regolith.conversions import bulk_excavation
 from ow_regolith.materials import Bulk
 from ow_runtime.latched import latched_publisher
-from ow_runtime.names import MATERIAL_INGESTED, REGOLITH_BUDGET, SIM_INGEST_SAMPLE
+from ow_runtime.names import MATERIAL_INGESTED, REGOLITH_BUDGET, SIM_DEM_DIGS, SIM_INGEST_SAMPLE
 from ow_sim_bullet import conversions
 from ow_sim_bullet.errors import SimError
 from ow_sim_bullet.outputs import SimOutputs
@@ -92,3 +92,11 @@ def budget_publisher() -> rospy.Publisher:
     with warnings.catch_warnings():  # rospy warns of queue_size None
         warnings.simplefilter("ignore", SyntaxWarning)
         return latched_publisher(REGOLITH_BUDGET, RegolithBudget, queue_size=None)
+
+
+def dem_digs_publisher() -> rospy.Publisher:
+    """The publisher of ``/sim/dem_digs`` (ow_msgs/DemDig, one message per live DEM dig),
+    writing on the simulation's thread: none is lost to a subscriber that lags."""
+    with warnings.catch_warnings():  # rospy warns of queue_size None
+        warnings.simplefilter("ignore", SyntaxWarning)
+        return rospy.Publisher(SIM_DEM_DIGS, DemDig, queue_size=None)

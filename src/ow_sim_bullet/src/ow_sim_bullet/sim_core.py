@@ -224,9 +224,14 @@ class BulletSim:
         self.carver = TerrainCarver(heightmap, config, cutters, self._make_surface)
         self.regolith, self._regolith_scoop = self._make_regolith(heightmap)
         material_top = None
-        if isinstance(force_model, LockstepModel):  # the live DEM: this terrain, loose, step
-            force_model.attach(self.carver, self.dt, self._loose_top)
-            material_top = force_model.material_top
+        #: the live terrain-force model (the DEM), None for the others.
+        self._live = force_model if isinstance(force_model, LockstepModel) else None
+        #: its digs that ended or failed, (sim time s of the carve update that learnt it, the
+        #: dig's summary), oldest first, until the outputs take them.
+        self.finished_dem_digs: list[tuple[float, dict[str, Any]]] = []
+        if self._live is not None:  # this terrain, its loose regolith, the physics step
+            self._live.attach(self.carver, self.dt, self._loose_top)
+            material_top = self._live.material_top
         self.forces = ToolForces(tool_links)
         self.tracker = ToolTracker(
             model,
@@ -433,16 +438,13 @@ class BulletSim:
             self._next_carve = self.time + self.config.carve_period
             was_digging = self.tracker.dig.phase.digging
             self.tracker.update_digging(q, self.time)
-            if was_digging and not self.tracker.dig.phase.digging:
-                self._dig_ended()
+            if self._live is not None:
+                if was_digging and not self.tracker.dig.phase.digging:
+                    # A failure is logged and reported by the model; the forces were applied.
+                    with contextlib.suppress(DemRunError):
+                        self._live.dig_ended()  # it ends its dig here
+                self.finished_dem_digs += ((self.time, d) for d in self._live.take_finished())
             self._carve()
-
-    def _dig_ended(self) -> None:
-        """The scoop's dig phase ended: a live terrain-force model ends its dig here."""
-        if isinstance(self.force_model, LockstepModel):
-            # A failure is logged by the model; the dig's forces were all applied already.
-            with contextlib.suppress(DemRunError):
-                self.force_model.dig_ended()
 
     def _carve(self) -> None:
         """One carve update: the regolith follows the scoop (it collects in a dig, spills and

@@ -25,7 +25,7 @@ from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.errors import SimError
 from ow_sim_bullet.lockstep_node import LockstepServer
 from ow_sim_bullet.reconfigure_node import SimReconfigure
-from ow_sim_bullet.regolith_node import RegolithServer, budget_publisher
+from ow_sim_bullet.regolith_node import RegolithServer, budget_publisher, dem_digs_publisher
 from ow_sim_bullet.runner import SimRunner
 from ow_sim_bullet.sim_core import BulletSim, make_force_model
 from ow_sim_bullet.terrains import parse_terrain_spec
@@ -64,6 +64,10 @@ class SimNode:
             phase (OceanWATERS' topic and fields), NOT_DIGGING at start, then at each change;
             the terrain gives way to the scoop only while it digs.
         /flags/joint_states (ow_msgs/JointStatesFlag): locked joints, with /joint_states.
+        /sim/dem_digs (ow_msgs/DemDig): with the live DEM (``terrain_forces: yade``), one
+            message per dig when it ends or fails, stamped at the carve update that learnt it:
+            its bed's spheres, exchanges, the sample (spheres in the scoop, m^3, kg) or the
+            error.
     The regolith (/regolith/budget, /ground_truth/material_ingested, /sim/ingest_sample): see
     :class:`~ow_sim_bullet.regolith_node.RegolithServer`.
     Faults (``/faults/parameter_updates``) and PID gains (dynamic_reconfigure): see
@@ -125,6 +129,7 @@ class SimNode:
             on_clock,
             self._publish_dig_phase,
             budget_publisher(),
+            dem_digs_publisher(),
         )
         self.outputs.publish_terrain()
         self.outputs.publish_dig_phase()
