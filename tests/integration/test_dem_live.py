@@ -1,7 +1,8 @@
 """The live DEM in the running stack (docs/dem.md, "Live co-simulation"): the simulation with
 ``~terrain_forces: yade`` and the arm services dig; the scoop's wrench during the dig comes from
 YADE (it is not the table's), and when the YADE process is killed in the middle of a second dig,
-the simulation goes on (that dig ends, the rest of it with the table) and logs why. A dig that
+the simulation goes on (that dig ends, the rest of it with the table), logs why, and the dig
+fails with the DEM's reason. A dig that
 follows a grind to the same depth (the mission's) digs the grinder's cuttings live: the scoop's tip
 is on the trench floor, at depth 0 below the height map, in the bed's loose layer.
 
@@ -185,7 +186,10 @@ def test_a_dig_runs_live_and_a_killed_dem_leaves_the_stack_running(live_stack):
 
     response, in_ground = _dig(live_stack, 1.75, during=kill_mid_dig)
     assert killed, "the second dig never started live"
-    assert response.success, response.message  # the rest of the dig ran on the table
+    # The rest of the dig ran on the table, and the dig fails with the DEM's reason.
+    assert not response.success
+    assert "the live DEM failed during the dig (" in response.message, response.message
+    assert "killed by signal 9" in response.message
     assert sim.alive()
     log = sim.log()
     assert "live DEM: the dig that started at" in log and "killed by signal 9" in log

@@ -96,6 +96,8 @@ SIM_SCOOP_MODEL_STATE = "/sim/scoop_model_state"
 SIM_SCOOP_MODEL_WRENCH = "/sim/scoop_model_wrench"
 #: Each dig of a live terrain-force model, when it ends or fails (ow_msgs/DemDig): its sample.
 SIM_DEM_DIGS = "/sim/dem_digs"
+#: The live DEM's digs stamped within a time window (ow_msgs/DemDigs; live DEM simulations only).
+SIM_DEM_DIGS_SERVICE = "/sim/dem_digs_between"
 SIM_RESUME = "/sim/resume"
 
 # The regolith the simulation follows (ow_regolith in the sim node; docs/regolith.md).

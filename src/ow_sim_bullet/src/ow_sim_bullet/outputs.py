@@ -171,6 +171,9 @@ class SimOutputs:
         self._unflushed_steps = 0
         #: s of sim time, the stamp of the newest /joint_states queued (-1: none yet).
         self.joint_stamp = -1.0
+        #: every ow_msgs/DemDig published, oldest first (a few per mission: kept for
+        #: ``/sim/dem_digs_between``; read on the simulation thread).
+        self.dem_digs: list[Any] = []
         #: s, the stamp of the newest /sim/terrain published (-1: none yet).
         self.terrain_stamp = -1.0
         #: s of sim time of the last /clock message queued, and of the last one told on_clock.
@@ -225,8 +228,10 @@ class SimOutputs:
         if sim.finished_dem_digs:
             digs, sim.finished_dem_digs = sim.finished_dem_digs, []
             for time_s, summary in digs:
+                msg = conversions.dem_dig_msg(time_s, "scoop", summary)
+                self.dem_digs.append(msg)
                 if self._dem_digs_pub is not None:
-                    self._dem_digs_pub.publish(conversions.dem_dig_msg(time_s, "scoop", summary))
+                    self._dem_digs_pub.publish(msg)
         self.publish_terrain_if_due()
 
     def publish_dig_phase(self) -> None:

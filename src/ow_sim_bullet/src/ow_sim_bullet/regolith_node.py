@@ -10,11 +10,17 @@ import rospy
 
 from ow_materials.msg import BulkExcavation
 from ow_msgs.msg import DemDig, RegolithBudget
-from ow_msgs.srv import IngestSample, IngestSampleResponse
+from ow_msgs.srv import DemDigs, DemDigsResponse, IngestSample, IngestSampleResponse
 from ow_regolith.conversions import bulk_excavation
 from ow_regolith.materials import Bulk
 from ow_runtime.latched import latched_publisher
-from ow_runtime.names import MATERIAL_INGESTED, REGOLITH_BUDGET, SIM_DEM_DIGS, SIM_INGEST_SAMPLE
+from ow_runtime.names import (
+    MATERIAL_INGESTED,
+    REGOLITH_BUDGET,
+    SIM_DEM_DIGS,
+    SIM_DEM_DIGS_SERVICE,
+    SIM_INGEST_SAMPLE,
+)
 from ow_sim_bullet import conversions
 from ow_sim_bullet.errors import SimError
 from ow_sim_bullet.outputs import SimOutputs
@@ -100,3 +106,30 @@ def dem_digs_publisher() -> rospy.Publisher:
     with warnings.catch_warnings():  # rospy warns of queue_size None
         warnings.simplefilter("ignore", SyntaxWarning)
         return rospy.Publisher(SIM_DEM_DIGS, DemDig, queue_size=None)
+
+
+class DemDigsServer:
+    """``/sim/dem_digs_between`` (ow_msgs/DemDigs) of a live DEM simulation: the DEM digs
+    published on ``/sim/dem_digs`` stamped within the request's window (answered on the
+    simulation thread: what it has published up to where it stands).
+
+    Args:
+        runner: the simulation thread.
+        outputs: the outputs, which keep every DemDig they published.
+    """
+
+    def __init__(self, runner: SimRunner, outputs: SimOutputs) -> None:
+        self._runner = runner
+        self._outputs = outputs
+        rospy.Service(SIM_DEM_DIGS_SERVICE, DemDigs, self._on_request)
+
+    def _on_request(self, request: Any) -> DemDigsResponse:
+        start, end = request.start.to_sec(), request.end.to_sec()
+
+        def between() -> list[Any]:
+            return [m for m in self._outputs.dem_digs if start <= m.header.stamp.to_sec() <= end]
+
+        try:
+            return DemDigsResponse(self._runner.call(between))
+        except SimError as error:
+            raise rospy.ServiceException(str(error)) from error

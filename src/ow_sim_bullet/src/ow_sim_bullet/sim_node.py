@@ -10,7 +10,7 @@ import rospy
 import rospy.impl.simtime
 from std_srvs.srv import Trigger, TriggerResponse
 
-from ow_dem_bridge.api import REMOTE_MODEL_NAME
+from ow_dem_bridge.api import REMOTE_MODEL_NAME, LockstepModel
 from ow_dem_bridge.remote_node import make_remote_model
 from ow_description.description import SCOOP_TIP_FRAME, URDF_PATH
 from ow_description.terrain import HeightMap
@@ -25,7 +25,12 @@ from ow_sim_bullet.config import SimConfig
 from ow_sim_bullet.errors import SimError
 from ow_sim_bullet.lockstep_node import LockstepServer
 from ow_sim_bullet.reconfigure_node import SimReconfigure
-from ow_sim_bullet.regolith_node import RegolithServer, budget_publisher, dem_digs_publisher
+from ow_sim_bullet.regolith_node import (
+    DemDigsServer,
+    RegolithServer,
+    budget_publisher,
+    dem_digs_publisher,
+)
 from ow_sim_bullet.runner import SimRunner
 from ow_sim_bullet.sim_core import BulletSim, make_force_model
 from ow_sim_bullet.terrains import parse_terrain_spec
@@ -87,6 +92,8 @@ class SimNode:
         ~set_pid_gains (ow_msgs/SetPidGains): change one joint's gains now (partial requests
             keep what they leave out; see SimReconfigure).
         ~set_terrain (ow_msgs/SetTerrain): replace the terrain (spec as ``~terrain``).
+        /sim/dem_digs_between (ow_msgs/DemDigs): with the live DEM only, the /sim/dem_digs
+            messages stamped within a window (the arm services ask after each execution).
     Lockstep: :class:`~ow_sim_bullet.lockstep_node.LockstepServer`, docs/determinism.md.
 
     Parameters: see :class:`ow_sim_bullet.config.SimConfig` and docs/simulation.md.
@@ -147,6 +154,8 @@ class SimNode:
         self.reconfigure = SimReconfigure(self.runner)  # faults, PID gains, ~set_pid_gains
         self.lockstep = LockstepServer(self.runner, config.lockstep_clients)
         self.regolith = RegolithServer(self.runner, self.outputs)  # /sim/ingest_sample
+        if isinstance(force_model, LockstepModel):  # /sim/dem_digs_between
+            self.dem_digs = DemDigsServer(self.runner, self.outputs)
         self._thread = threading.Thread(target=self._run, name="sim", daemon=True)
 
     def _parse_terrain(self, spec: str) -> HeightMap:
