@@ -14,7 +14,7 @@ from ow_description.trajectory import Trajectory
 from ow_lander import conversions as conv
 from ow_lander.arm_services.decisions import DecisionOutlet
 from ow_lander.arm_services.delivery import TrajectoryDelivery
-from ow_lander.arm_services.live_dem import live_dem_failure
+from ow_lander.arm_services.live_dem import LIVE_DEM_OPERATIONS, live_dem_failure
 from ow_lander.arm_services.lock_flags import LockFlags, without_locks
 from ow_lander.arm_services.observer import ArmObserver, SampleCallback
 from ow_lander.arm_services.stop_clock import StopPause
@@ -159,7 +159,8 @@ class ArmExecutor(ArmObserver):
                 if self._lockstep is not None:  # the joint states no decision was taken on
                     self._lockstep.ack(self._joint_stamp, force=True)
             self._stopped.set()
-        if result.success:  # a dig whose DEM failed fails, with the DEM's reason
+        if result.success and trajectory.operation in LIVE_DEM_OPERATIONS:
+            # A dig during which the live DEM failed fails, with the DEM's reason.
             failure = live_dem_failure(monitor.t_start, monitor.t_start + result.duration)
             if failure is not None:
                 result.success, result.message = False, failure

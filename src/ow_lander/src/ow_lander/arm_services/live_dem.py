@@ -8,6 +8,10 @@ import rospy
 from ow_msgs.srv import DemDigs
 from ow_runtime.names import SIM_DEM_DIGS_SERVICE
 
+#: The operations whose trajectories a live DEM digs (the scoop's; the grinder gets the fallback
+#: model): only their executions ask the simulation, so no other execution ends later.
+LIVE_DEM_OPERATIONS = frozenset({"dig_linear", "dig_circular"})
+
 
 def live_dem_failure(start_s: float, end_s: float) -> str | None:
     """Why the live DEM failed during a dig the simulation ended between ``start_s`` and
