@@ -89,6 +89,22 @@ def test_the_mission_runs_in_lockstep_unless_node_params_turn_it_off(tmp_path):
     assert params["arm_services"]["execution"]["lockstep_hold"] is False
 
 
+def test_a_live_dem_mission_records_its_forces_and_digs_beside_everything_else(tmp_path):
+    from ow_mission.mission import node_parameters
+    from ow_mission.mission_config import LIVE_DEM_RECORD_TOPICS, MissionConfig
+    from ow_runtime.names import MATERIAL_INGESTED, REGOLITH_BUDGET, SIM_DEM_DIGS
+
+    table = set(node_parameters(MissionConfig.from_dict({}), tmp_path)["record"]["topics"])
+    live_params = node_parameters(MissionConfig.from_dict({"terrain_forces": "yade"}), tmp_path)
+    live = set(live_params["record"]["topics"])
+    # The live DEM's topics come on top: the terrain, the regolith, the battery, the faults stay
+    # (its record list once replaced the mission's, and its report lost those sections).
+    assert live == table | set(LIVE_DEM_RECORD_TOPICS)
+    assert {REGOLITH_BUDGET, MATERIAL_INGESTED, "/sim/terrain"} <= live
+    assert SIM_DEM_DIGS in live and SIM_DEM_DIGS not in table
+    assert live_params["sim"]["tool_state_rate_hz"] == 100.0
+
+
 def test_the_mission_drains_the_state_topics_it_records_at_their_rates(tmp_path):
     from ow_mission.mission import drain_periods, node_parameters
     from ow_mission.mission_config import MissionConfig

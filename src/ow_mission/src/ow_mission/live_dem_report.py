@@ -2,7 +2,7 @@
 the seed paper's comparison (its Table 6 metric) of the table and Balovnev models against them.
 
 A live-DEM mission records the scoop's model state and wrench at every physics step
-(:data:`~ow_mission.mission_config.LIVE_DEM_NODE_PARAMS`): while the scoop digs, each pair is
+(:data:`~ow_mission.mission_config.LIVE_DEM_RECORD_TOPICS`): while the scoop digs, each pair is
 one DEM exchange, the state the DEM was given and the wrench it answered. For each dig step
 (``dig_spoil``, ``dig_sample``) this module takes the pairs with the scoop in the ground, asks the
 shipped ``table`` and ``balovnev`` models offline for the same states, and gives the NRMSD of their

@@ -16,11 +16,12 @@ from typing import Any
 
 from ow_bringup.node_config import SERVE_DOCK_INGEST, SERVE_FAULTS, STACK_NODES, stack_parameters
 from ow_cameras.protocol import CAMERA_CAPTURE
+from ow_dem_bridge.api import LIVE_MODEL_NAME
 from ow_faults.protocol import CHANGES_TOPIC
 from ow_mission.bag_prefetch import BagPrefetch
 from ow_mission.fault_schedule import AppliedFault
 from ow_mission.figures import FiguresProcess, start_figures
-from ow_mission.mission_config import MissionConfig
+from ow_mission.mission_config import LIVE_DEM_RECORD_TOPICS, MissionConfig
 from ow_mission.workspace_capture import mast_aim
 from ow_power.config import BATTERY_TOPICS, TELEMETRY_TOPICS
 from ow_runtime.names import (
@@ -502,6 +503,8 @@ def node_parameters(config: MissionConfig, run_dir: Path) -> dict[str, dict[str,
                 # report's sample section).
                 REGOLITH_BUDGET,
                 MATERIAL_INGESTED,
+                # With the live DEM: its forces and digs (the report's live DEM section).
+                *(LIVE_DEM_RECORD_TOPICS if config.terrain_forces == LIVE_MODEL_NAME else ()),
             ],
         },
     }

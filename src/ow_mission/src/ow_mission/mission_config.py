@@ -25,7 +25,6 @@ from ow_description.description import (
 )
 from ow_mission.errors import ConfigError
 from ow_mission.fault_schedule import MISSION_STEPS, ScheduledFault, parse_schedule
-from ow_power.config import DEFAULT_RECORD_TOPICS
 from ow_runtime.names import SIM_DEM_DIGS, SIM_SCOOP_MODEL_STATE, SIM_SCOOP_MODEL_WRENCH
 from ow_runtime.params import Params, suggest
 
@@ -44,21 +43,19 @@ LIVE_DEM_STEP_TIMEOUT_S = 3600.0
 #: The live DEM's defaults under the mission's ``node_params`` (the user's go on top): the arm
 #: services wait for each joint state up to 10 min of wall time (not 5 s), since the simulation
 #: waits for the DEM: a dig's first exchange may wait for a template bed to settle (first use);
-#: the scoop's model state and wrench are recorded, at every physics step (100 Hz, not 10 Hz:
-#: each a DEM exchange while the scoop digs), for the report's live forces
-#: (:mod:`ow_mission.live_dem_report`), and each DEM dig with its sample (`/sim/dem_digs`).
+#: the scoop's model state and wrench at every physics step (100 Hz, not 10 Hz: each a DEM
+#: exchange while the scoop digs).
 LIVE_DEM_NODE_PARAMS: dict[str, dict[str, Any]] = {
     "arm_services": {"execution": {"joint_state_timeout_s": 600.0}},
     "sim": {"tool_state_rate_hz": 100.0},
-    "record": {
-        "topics": [
-            *DEFAULT_RECORD_TOPICS,
-            SIM_SCOOP_MODEL_STATE,
-            SIM_SCOOP_MODEL_WRENCH,
-            SIM_DEM_DIGS,
-        ]
-    },
 }
+#: What a live-DEM mission records besides the others' topics, for the report's live forces
+#: (:mod:`ow_mission.live_dem_report`): the scoop's model states and wrenches, each DEM dig.
+LIVE_DEM_RECORD_TOPICS: tuple[str, ...] = (
+    SIM_SCOOP_MODEL_STATE,
+    SIM_SCOOP_MODEL_WRENCH,
+    SIM_DEM_DIGS,
+)
 
 #: How the mission is started.
 #: The command-line flag that makes the mission wait for its figures (``make demo``).
