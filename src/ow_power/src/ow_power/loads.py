@@ -82,22 +82,21 @@ class LoadSum:
     def at(self, stamp_s: float) -> float:
         """W, the sum of every source's load at the sample of ``stamp_s`` (s, sim). A stamp older
         than the newest read (the simulation reset) starts the schedules afresh from each
-        source's load then."""
+        source's load then. Called for every joint state: nothing is copied."""
         if stamp_s < self._read_s:  # the clock went back: keep what each source draws now
             self._changes = {
                 source: [(-math.inf, self._load(changes, self._read_s))]
                 for source, changes in self._changes.items()
             }
         self._read_s = stamp_s
-        total = []
-        for source, changes in self._changes.items():
-            load = self._load(changes, stamp_s)
-            # Changes superseded before this stamp are never read again.
-            before = stamp_s - STAMP_SLACK_S
-            current = [c for c in changes if c[0] < before]
-            self._changes[source] = [*current[-1:], *(c for c in changes if c[0] >= before)]
-            total.append(load)
-        return math.fsum(total)
+        before = stamp_s - STAMP_SLACK_S
+        loads = []
+        for changes in self._changes.values():  # each in time order (update keeps them so)
+            while len(changes) > 1 and changes[1][0] < before:
+                del changes[0]  # superseded before this stamp: never read again
+            if changes[0][0] < before:
+                loads.append(changes[0][1])
+        return math.fsum(loads)
 
     @property
     def total_w(self) -> float:

@@ -171,9 +171,8 @@ class SimOutputs:
         self._unflushed_steps = 0
         #: s of sim time, the stamp of the newest /joint_states queued (-1: none yet).
         self.joint_stamp = -1.0
-        #: every ow_msgs/DemDig published, oldest first (a few per mission: kept for
-        #: ``/sim/dem_digs_between``; read on the simulation thread).
-        self.dem_digs: list[Any] = []
+        #: how many of the simulation's finished DEM digs went out.
+        self._dem_digs_out = 0
         #: s, the stamp of the newest /sim/terrain published (-1: none yet).
         self.terrain_stamp = -1.0
         #: s of sim time of the last /clock message queued, and of the last one told on_clock.
@@ -225,13 +224,11 @@ class SimOutputs:
         if sim.dig_phase is not self._dig_phase:
             self.publish_dig_phase()
         self.publish_budget_if_changed()
-        if sim.finished_dem_digs:
-            digs, sim.finished_dem_digs = sim.finished_dem_digs, []
-            for time_s, summary in digs:
-                msg = conversions.dem_dig_msg(time_s, "scoop", summary)
-                self.dem_digs.append(msg)
+        if len(sim.finished_dem_digs) > self._dem_digs_out:
+            for time_s, summary in sim.finished_dem_digs[self._dem_digs_out :]:
                 if self._dem_digs_pub is not None:
-                    self._dem_digs_pub.publish(msg)
+                    self._dem_digs_pub.publish(conversions.dem_dig_msg(time_s, "scoop", summary))
+            self._dem_digs_out = len(sim.finished_dem_digs)
         self.publish_terrain_if_due()
 
     def publish_dig_phase(self) -> None:

@@ -109,27 +109,28 @@ def dem_digs_publisher() -> rospy.Publisher:
 
 
 class DemDigsServer:
-    """``/sim/dem_digs_between`` (ow_msgs/DemDigs) of a live DEM simulation: the DEM digs
-    published on ``/sim/dem_digs`` stamped within the request's window (answered on the
-    simulation thread: what it has published up to where it stands).
+    """``/sim/dem_digs_between`` (ow_msgs/DemDigs) of a live DEM simulation: its finished DEM
+    digs (``BulletSim.finished_dem_digs``, as ``/sim/dem_digs`` published them) stamped within
+    the request's window, read on the simulation thread: what it has learnt up to where it
+    stands.
 
     Args:
         runner: the simulation thread.
-        outputs: the outputs, which keep every DemDig they published.
     """
 
-    def __init__(self, runner: SimRunner, outputs: SimOutputs) -> None:
+    def __init__(self, runner: SimRunner) -> None:
         self._runner = runner
-        self._outputs = outputs
         rospy.Service(SIM_DEM_DIGS_SERVICE, DemDigs, self._on_request)
 
     def _on_request(self, request: Any) -> DemDigsResponse:
         start, end = request.start.to_sec(), request.end.to_sec()
 
-        def between() -> list[Any]:
-            return [m for m in self._outputs.dem_digs if start <= m.header.stamp.to_sec() <= end]
+        def finished() -> list[tuple[float, dict[str, Any]]]:
+            return list(self._runner.sim.finished_dem_digs)
 
         try:
-            return DemDigsResponse(self._runner.call(between))
+            digs = [conversions.dem_dig_msg(t, "scoop", d) for t, d in self._runner.call(finished)]
         except SimError as error:
             raise rospy.ServiceException(str(error)) from error
+        # By the stamps as published: the window's ends are stamps too.
+        return DemDigsResponse([m for m in digs if start <= m.header.stamp.to_sec() <= end])

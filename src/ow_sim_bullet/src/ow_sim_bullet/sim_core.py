@@ -226,8 +226,8 @@ class BulletSim:
         material_top = None
         #: the live terrain-force model (the DEM), None for the others.
         self._live = force_model if isinstance(force_model, LockstepModel) else None
-        #: its digs that ended or failed, (sim time s of the carve update that learnt it, the
-        #: dig's summary), oldest first, until the outputs take them.
+        #: every dig of it that ended or failed, (sim time s of the carve update that learnt it,
+        #: the dig's summary), oldest first: a few per mission (the outputs publish each once).
         self.finished_dem_digs: list[tuple[float, dict[str, Any]]] = []
         if self._live is not None:  # this terrain, its loose regolith, the physics step
             self._live.attach(self.carver, self.dt, self._loose_top)

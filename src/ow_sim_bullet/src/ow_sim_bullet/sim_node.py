@@ -155,7 +155,7 @@ class SimNode:
         self.lockstep = LockstepServer(self.runner, config.lockstep_clients)
         self.regolith = RegolithServer(self.runner, self.outputs)  # /sim/ingest_sample
         if isinstance(force_model, LockstepModel):  # /sim/dem_digs_between
-            self.dem_digs = DemDigsServer(self.runner, self.outputs)
+            self.dem_digs = DemDigsServer(self.runner)
         self._thread = threading.Thread(target=self._run, name="sim", daemon=True)
 
     def _parse_terrain(self, spec: str) -> HeightMap:
