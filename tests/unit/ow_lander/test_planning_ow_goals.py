@@ -173,3 +173,42 @@ def test_a_pose_whose_nearest_branch_collides_is_reached_on_another(planner, ctx
     X = model.fk(planner.full(arm, ctx.base), SCOOP_TIP_FRAME)
     assert np.allclose(X[:3, 3], position, atol=1e-4)
     assert not np.allclose(arm, planner.arm(q), atol=0.05)
+
+
+#: rad, the arm where the default mission's delivery ends (scoop poured over the dock, hand yaw
+#: near 5.26 rad): straight to the stowed pose the scoop would sweep through base_link.
+DELIVERED = np.array([0.435579, 0.98012, 1.721025, 1.299564, 5.264812, 0.93364])
+
+
+def test_stowing_after_a_delivery_turns_the_hand_the_other_way_in_one_straight_move(planner):
+    ctx = CheckContext(planner.model.q_from(dict(zip(ARM_JOINTS, DELIVERED, strict=True))), None)
+    goal = planner.unwrap(_arm(STOWED), DELIVERED)
+    assert not planner.path_valid(np.vstack([DELIVERED, goal]), ctx)
+    before = planner.stats.rrt_iterations
+    path = planner.plan_free(DELIVERED, goal, ctx)
+    # RRT* ran to its cap; no RRTConnect search was needed.
+    assert planner.stats.rrt_iterations - before == PlannerConfig().rrt_max_iterations + 1
+    assert path.shape == (2, 6)
+    turned = np.flatnonzero(~np.isclose(path[-1], goal))
+    assert len(turned) == 1 and CONTINUOUS[turned[0]]
+    assert abs(path[-1][turned[0]] - goal[turned[0]]) == pytest.approx(2 * math.pi)
+    assert planner.path_valid(path, ctx)
+
+
+def test_a_search_that_finds_nothing_ends_on_its_iteration_cap():
+    """RRTConnect the shorter way round from the delivery's end finds nothing: it ends on its
+    iteration cap, not on the clock, so the same request fails the same way at any load."""
+    config = PlannerConfig(connect_max_iterations=150)
+    capped = ArmPlanner(LanderModel(), config)
+    ctx = CheckContext(capped.model.q_from(dict(zip(ARM_JOINTS, DELIVERED, strict=True))), None)
+    goal = capped.unwrap(_arm(STOWED), DELIVERED)
+    sampler = capped._sampled
+    counts = []
+    for _ in range(2):
+        before = capped.stats.rrt_iterations
+        path = sampler._solve(
+            DELIVERED, [goal], ctx, config.seed, config.joint_resolution_rad, "work", connect=True
+        )
+        assert path is None
+        counts.append(capped.stats.rrt_iterations - before)
+    assert counts == [config.connect_max_iterations + 1] * 2

@@ -68,9 +68,11 @@ class PlannerConfig:
         rrt_cost_threshold_factor: RRT* stops once its cost is below this factor times the cost
             of the (invalid) straight joint-space segment.
         rrt_attempts: solves tried (seeds ``seed``, ``seed + 1``, ...) before giving up.
-        connect_time_limit_s: s (wall), time cap of the RRTConnect feasibility search tried
+        connect_max_iterations: iteration cap of one RRTConnect feasibility search, tried
             when RRT* found nothing within its caps (its path is then shortened by the same
-            objective); 0 disables it.
+            objective): its usual end when it finds nothing, reproducible at any load.
+        connect_time_limit_s: s (wall), time cap of one RRTConnect search (a safety net, as
+            ``rrt_time_limit_s``); 0 disables the RRTConnect searches.
         seed: OMPL random seed (> 0); the same request and state give the same plan.
         path_length_weight: J/rad, weight of joint-space path length in the work objective.
         ik_restarts: random restarts of IK for free-space goals (Cartesian steps use none).
@@ -89,7 +91,8 @@ class PlannerConfig:
     rrt_time_limit_s: float = field(default=5.0, metadata=POSITIVE)
     rrt_cost_threshold_factor: float = field(default=1.5, metadata=POSITIVE)
     rrt_attempts: int = field(default=1, metadata=AT_LEAST_ONE)
-    connect_time_limit_s: float = 5.0
+    connect_max_iterations: int = field(default=1000, metadata=AT_LEAST_ONE)
+    connect_time_limit_s: float = 30.0
     seed: int = field(default=42, metadata=NON_NEGATIVE)
     path_length_weight: float = field(default=0.05, metadata=NON_NEGATIVE)
     ik_restarts: int = field(default=40, metadata=NON_NEGATIVE)

@@ -59,11 +59,15 @@ class SampledPlanner:
         """A valid path from ``start`` to ``goal`` ((6,) rad, both valid): RRT* (``rrt_attempts``
         seeds), then RRTConnect, shortcut and re-checked at the joint resolution.
 
-        The continuous joints turn the shorter way round to ``goal``. Only when neither search
-        finds a path that way, a last RRTConnect lets them reach their goal angles either way
-        round (as MoveIt's circular space for a continuous joint does): that path may end at
-        ``goal`` with one such joint a whole turn away (see :meth:`goal_turns`), so callers
-        continue from its last row.
+        The continuous joints turn the shorter way round to ``goal``. When RRT* finds no path
+        that way, a straight segment with one such joint reaching its goal angle the other way
+        round is taken if it is valid (a delivery's end, where the scoop would sweep the lander
+        the short way round, is one); then RRTConnect the shorter way, and a last RRTConnect
+        letting them reach their goal angles either way round (as MoveIt's circular space for a
+        continuous joint does). Those paths may end at ``goal`` with one such joint a whole turn
+        away (see :meth:`goal_turns`), so callers continue from its last row. Every search ends
+        on its iteration cap (``rrt_max_iterations``, ``connect_max_iterations``): the same
+        request and state give the same plan at any machine load.
 
         Args:
             start: (6,) rad.
@@ -95,6 +99,11 @@ class SampledPlanner:
                 self.stats.rrt_segments += 1
                 return path
         turns = self.goal_turns(start, goal)
+        for other in turns[1:]:
+            turned = np.vstack([start, other])
+            if self.checker.path_valid(turned, ctx):
+                self.stats.direct_segments += 1
+                return turned
         # The shorter way round first; either way round only when that finds nothing.
         searches = [[goal], turns] if len(turns) > 1 else [[goal]]
         for goals in searches if config.connect_time_limit_s > 0 else []:
@@ -110,7 +119,8 @@ class SampledPlanner:
         msg = (
             f"no collision-free path found by RRT* within {config.rrt_max_iterations} "
             f"iterations / {config.rrt_time_limit_s} s, nor by RRTConnect within "
-            f"{config.connect_time_limit_s} s, the continuous joints turning either way round "
+            f"{config.connect_max_iterations} iterations / {config.connect_time_limit_s} s, "
+            f"the continuous joints turning either way round "
             f"(the straight segment is blocked: "
             f"{self.checker.explain(start if blocked is None else blocked, ctx)})"
         )
@@ -178,7 +188,7 @@ class SampledPlanner:
         if connect:
             planner = og.RRTConnect(si)
             planner.setRange(config.rrt_range_rad)
-            cap, time_limit = 100 * config.rrt_max_iterations, config.connect_time_limit_s
+            cap, time_limit = config.connect_max_iterations, config.connect_time_limit_s
         else:
             planner = og.RRTstar(si)
             planner.setRange(config.rrt_range_rad)
