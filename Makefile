@@ -19,9 +19,11 @@ test: setup lint
 test-ray: setup
 	@$(RUN) OW_RAY_TESTS=1 python -m pytest tests/integration/test_campaign.py $(PYTEST_ARGS)
 
-# The live DEM dig in the running stack (minutes of wall time), which make test skips.
+# The live DEM digs in the simulation and in the running stack (minutes of wall time each),
+# which make test skips.
 test-dem-live: setup
-	@$(RUN) OW_DEM_LIVE_TESTS=1 python -m pytest tests/integration/test_dem_live.py $(PYTEST_ARGS)
+	@$(RUN) OW_DEM_LIVE_TESTS=1 python -m pytest tests/unit/ow_sim_bullet/test_live_dem_sample.py \
+	  tests/integration/test_dem_live.py $(PYTEST_ARGS)
 
 unit: setup
 	@$(RUN) python -m pytest -n 2 tests/unit $(PYTEST_ARGS)

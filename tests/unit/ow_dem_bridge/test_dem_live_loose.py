@@ -10,7 +10,8 @@ import math
 import numpy as np
 import pytest
 
-from ow_dem_bridge.live import BedGrid, LiveDemModel, sample_bed
+from ow_dem_bridge.live import LiveDemModel
+from ow_dem_bridge.live_bed import BedGrid, sample_bed
 from ow_dem_bridge.live_config import LiveConfig
 
 GROUND = -0.155

@@ -22,7 +22,8 @@ import pytest
 from ow_dem_bridge.api import LIVE_MODEL_NAME, LockstepModel, ToolState
 from ow_dem_bridge.errors import ConfigError, DemRunError
 from ow_dem_bridge.geometry import load_tool
-from ow_dem_bridge.live import LiveDemModel, quaternion
+from ow_dem_bridge.live import LiveDemModel
+from ow_dem_bridge.live_bed import quaternion
 from ow_dem_bridge.live_config import MATERIALS, LiveConfig, steps_per_exchange
 from ow_dem_bridge.models import make_model
 from ow_description.description import URDF_PATH
@@ -198,6 +199,12 @@ def test_a_live_dig_resists_the_cut_in_lockstep(first_run):
     assert wrenches[10:, 0].mean() < -0.1
     assert np.all(np.isfinite(wrenches))
     assert record.sample is not None and record.sample["sample_particles"] >= 0
+    # The settled template's packing (a poured random packing of spheres) turns the spheres'
+    # volume into the regolith's bulk volume.
+    assert 0.5 < record.solid_fraction < 0.68
+    assert record.sample["sample_bulk_volume_m3"] == pytest.approx(
+        record.sample["sample_volume_m3"] / record.solid_fraction, rel=1e-12
+    )
     # The simulation takes each finished dig once, for /sim/dem_digs.
     (finished,) = model.take_finished()
     assert finished["sample"] == record.sample and finished["error"] is None

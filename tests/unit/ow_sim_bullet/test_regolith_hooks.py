@@ -124,6 +124,30 @@ def test_a_bad_raise_is_refused_naming_it(carver, rows, cols, raise_m, match):
     assert np.all(terrain.heightmap.heights == GROUND) and not terrain.commit()
 
 
+def test_lowered_cells_fall_and_reach_the_surface_at_commit(carver):
+    terrain, surface = carver
+    terrain.lower_cells(np.array([20, 21]), np.array([25, 30]), np.array([0.01, 0.03]))
+    heights = terrain.heightmap.heights
+    assert heights[20, 25] == pytest.approx(GROUND - 0.01)
+    assert heights[21, 30] == pytest.approx(GROUND - 0.03)
+    assert np.count_nonzero(heights != GROUND) == 2
+    assert terrain.commit() and surface.refreshed == [((20, 21), (25, 30))]
+
+
+@pytest.mark.parametrize(
+    ("lower_m", "match"),
+    [
+        (-0.01, r"a lowering must be finite and >= 0 m, got -0\.01 m"),
+        (0.6, r"a lowering of up to 0\.6 m goes below the floor"),
+    ],
+)
+def test_a_bad_lowering_is_refused_naming_it(carver, lower_m, match):
+    terrain, _ = carver
+    with pytest.raises(ValueError, match=match):
+        terrain.lower_cells(np.array([3]), np.array([4]), np.array([lower_m]))
+    assert np.all(terrain.heightmap.heights == GROUND) and not terrain.commit()
+
+
 # ------------------------------------------------------------------------- the simulation
 class Budgets:
     """Records the budget messages the outputs publish."""

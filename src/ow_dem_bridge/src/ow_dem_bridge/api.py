@@ -121,10 +121,12 @@ class LockstepModel(TerrainForceModel, Protocol):
         with its loose regolith now."""
         ...
 
-    def dig_ended(self) -> None:
+    def dig_ended(self) -> dict[str, Any] | None:
         """Called by the simulation when the scoop's dig phase ends (it is not digging any more
         after a dig phase): the dig under way ends there, at the same simulated time in every
         run, and whatever it holds at its end is counted (the DEM: the spheres in the scoop).
+        Returns that dig as :meth:`take_finished` will (its ``sample`` with
+        ``sample_bulk_volume_m3``, m^3 of regolith in bulk), None when no dig was under way.
 
         Raises:
             DemRunError: the model failed while ending the dig.

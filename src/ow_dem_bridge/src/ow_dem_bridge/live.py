@@ -21,7 +21,8 @@ as the simulation (YADE single-threaded, seeded, the same inputs bit for bit).
   the scoop overlaps. The loose regolith on the terrain (the grinder's cuttings in its trench,
   which the height map does not show; the simulation hands it over in :meth:`attach`) stays in
   the bed as loose spheres above the solid surface, up to the loose layer's top
-  (:func:`sample_bed`). See docs/dem.md, "Live co-simulation", for the sizes and why.
+  (:func:`~ow_dem_bridge.live_bed.sample_bed`). See docs/dem.md, "Live co-simulation", for the
+  sizes and why.
 * **Process.** :class:`~ow_dem_bridge.yade_worker.YadeWorker` runs ``yade -n -x -j1
   yade_live.py`` with two pipes and a JSON line per request and reply. It starts (and settles the
   template) when the model is made, in the background; the first dig waits for it.
@@ -50,7 +51,6 @@ from typing import Any
 import numpy as np
 
 from ow_dem_bridge.api import (
-    FloatArray,
     LooseTop,
     TerrainForceModel,
     TerrainHeights,
@@ -59,6 +59,7 @@ from ow_dem_bridge.api import (
 )
 from ow_dem_bridge.errors import ConfigError, DemRunError
 from ow_dem_bridge.geometry import ToolGeometry, load_tool
+from ow_dem_bridge.live_bed import BedFrame, BedGrid, dig_heading, sample_bed
 from ow_dem_bridge.live_config import MATERIALS, LiveConfig, steps_per_exchange
 from ow_dem_bridge.make_tables import ALUMINIUM, Soil
 from ow_dem_bridge.yade_worker import YadeWorker
@@ -70,28 +71,6 @@ DIG_GAP_S = 1.0
 #: rospy's named-logger convention (``rosout.<name>``): in a node, these lines reach /rosout and
 #: the node's log like ``rospy.loginfo``'s, without this module importing rospy.
 LOG = logging.getLogger("rosout.ow_dem_bridge.live")
-
-
-def quaternion(rotation: FloatArray) -> list[float]:
-    """(w, x, y, z) of a rotation matrix (Shepperd's method, w >= 0)."""
-    m = rotation
-    trace = m[0, 0] + m[1, 1] + m[2, 2]
-    if trace > 0:
-        s = 2.0 * math.sqrt(trace + 1.0)
-        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
-        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
-    elif m[1, 1] > m[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
-        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
-    else:
-        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
-        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
-    if q[0] < 0:
-        q = [-v for v in q]
-    norm = math.sqrt(sum(v * v for v in q))
-    return [float(v / norm) for v in q]
 
 
 # ------------------------------------------------------------------------------ the model
@@ -109,6 +88,8 @@ class LiveDig:
         bed_origin: (3,) m, the bed frame's origin in base_link (back of the bed, on its floor).
         heading: rad, the bed's x axis (the dig's direction) from base_link x.
         truncated_m: m of terrain relief above the template that the bed could not follow.
+        solid_fraction: the bed's spheres' volume over its bulk volume (the settled template's,
+            measured by YADE: 1 - porosity).
         setup_wall_s: s of wall time to make the bed (after YADE was ready).
         exchange_wall_s: s of wall time spent in exchanges.
         dem_elapsed_s: s of DEM time since the bed was made, after the last exchange: the sim
@@ -118,7 +99,9 @@ class LiveDig:
         progress: m, the tool state's progress at each exchange.
         wrenches: (Fx, Fy, Fz, Tx, Ty, Tz) N, N m of each exchange (l_scoop frame, about its COM).
         sample: the spheres in the scoop when the dig ended (``sample_particles``,
-            ``sample_volume_m3``, ``sample_mass_kg``), None before.
+            ``sample_volume_m3`` the spheres' own volume, ``sample_mass_kg``, and
+            ``sample_bulk_volume_m3`` the regolith's volume they make at the bed's packing,
+            ``sample_volume_m3 / solid_fraction``), None before.
         error: why the DEM failed during this dig, or None.
     """
 
@@ -131,6 +114,7 @@ class LiveDig:
     bed_origin: tuple[float, float, float]
     heading: float
     truncated_m: float
+    solid_fraction: float
     setup_wall_s: float
     exchange_wall_s: float = 0.0
     dem_elapsed_s: float = 0.0
@@ -193,7 +177,7 @@ class LiveDemModel:
         self._worker: YadeWorker | None = None
         self._template_material: int | None = None
         self._pending = 0  # replies still to read (hello, template)
-        self._bed = _BedFrame((0.0, 0.0, 0.0), 0.0)
+        self._bed = BedFrame((0.0, 0.0, 0.0), 0.0)
         self._template_reply: dict[str, Any] = {}
         self._bed_time = 0.0  # s, the DEM's clock when the bed was made
         if config.material:
@@ -251,14 +235,18 @@ class LiveDemModel:
             self._dig = self._start_dig(state)
         return self._exchange(self._dig, state)
 
-    def dig_ended(self) -> None:
+    def dig_ended(self) -> dict[str, Any] | None:
         """The simulation's scoop left its dig phase: :meth:`finish_dig` (the sample counted
         now, not at the next dig's start, which the mission's last dig never has).
+
+        Returns:
+            The dig it ended (:meth:`LiveDig.summary`), None when none was under way.
 
         Raises:
             DemRunError: the DEM process failed while counting the sample.
         """
-        self.finish_dig()
+        dig = self.finish_dig()
+        return None if dig is None else dig.summary()
 
     def take_finished(self) -> list[dict[str, Any]]:
         """The digs that ended (their sample counted) or failed since the last call, oldest
@@ -285,6 +273,7 @@ class LiveDemModel:
         dig.sample = {
             k: float(reply[k]) for k in ("sample_particles", "sample_volume_m3", "sample_mass_kg")
         }
+        dig.sample["sample_bulk_volume_m3"] = dig.sample["sample_volume_m3"] / dig.solid_fraction
         self._finished.append(dig)
         LOG.info(
             "live DEM: the dig that started at t=%.3f s ended after %d exchanges (%.1f s of "
@@ -401,7 +390,7 @@ class LiveDemModel:
         pose = np.asarray(state.pose, dtype=np.float64)
         rotation, origin = pose[:3, :3], pose[:3, 3]
         tip = rotation @ self.scoop.tip + origin
-        heading = _heading(rotation, rotation @ np.asarray(state.velocity), tip)
+        heading = dig_heading(rotation, rotation @ np.asarray(state.velocity), tip)
         cos_h, sin_h = math.cos(heading), math.sin(heading)
         us = np.linspace(0.0, c.bed_length, max(2, round(c.bed_length / c.grid_step) + 1))
         vs = np.linspace(
@@ -414,7 +403,7 @@ class LiveDemModel:
         floor = float(grid.solid.min()) - c.floor_depth
         bed_origin = (float(back[0]), float(back[1]), floor)
         count, dem_dt = steps_per_exchange(self.step_s, c, soil)
-        self._bed = _BedFrame(bed_origin, heading)
+        self._bed = BedFrame(bed_origin, heading)
         pos, quat = self._bed.pose(rotation, origin)
         request = {
             "op": "bed",
@@ -449,6 +438,7 @@ class LiveDemModel:
             bed_origin=bed_origin,
             heading=heading,
             truncated_m=float(reply["truncated_m"]),
+            solid_fraction=float(self._template_reply["solid_fraction"]),
             setup_wall_s=time.monotonic() - started,
         )
         self._bed_time = float(reply["time"])
@@ -539,102 +529,6 @@ class _NoForce:
     def wrench(self, state: ToolState) -> Wrench:
         """A zero wrench."""
         return Wrench(np.zeros(3), np.zeros(3))
-
-
-@dataclass(frozen=True)
-class _BedFrame:
-    """The DEM's frame: origin (m, base_link) at the back of the bed on its floor, x along the
-    dig (``heading`` rad from base_link x), z up."""
-
-    origin: tuple[float, float, float]
-    heading: float
-
-    @property
-    def rotation(self) -> FloatArray:
-        """(3, 3) the bed frame's axes in base_link."""
-        c, s = math.cos(self.heading), math.sin(self.heading)
-        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-    def pose(self, rotation: FloatArray, origin: FloatArray) -> tuple[list[float], list[float]]:
-        """A link pose in base_link as (position m, quaternion w, x, y, z) in the bed frame."""
-        turn = self.rotation.T
-        position = turn @ (origin - np.asarray(self.origin))
-        return position.tolist(), quaternion(turn @ rotation)
-
-
-@dataclass(frozen=True)
-class BedGrid:
-    """The terrain over a bed's footprint, sampled on its grid when the dig starts.
-
-    Attributes:
-        back: (x, y) m in base_link of the bed's back edge centre (the grid's u = v = 0).
-        heading: rad, the bed's x axis (u) from base_link x.
-        us: (nu,) m, grid positions along the dig.
-        vs: (nv,) m, grid positions across it (left positive).
-        solid: (nv, nu) m, base_link z of the terrain's height map (the solid surface).
-        top: (nv, nu) m, base_link z of the material's top: the loose layer's where loose
-            regolith lies on the solid surface, else the solid surface (``top >= solid``).
-    """
-
-    back: tuple[float, float]
-    heading: float
-    us: FloatArray
-    vs: FloatArray
-    solid: FloatArray
-    top: FloatArray
-
-    def top_at(self, x: float, y: float) -> float:
-        """m, the material's top at (x, y) m in base_link, bilinear on the grid; ``-inf``
-        outside the footprint."""
-        dx, dy = x - self.back[0], y - self.back[1]
-        c, s = math.cos(self.heading), math.sin(self.heading)
-        u, v = c * dx + s * dy, -s * dx + c * dy
-        us, vs = self.us, self.vs
-        if not (us[0] <= u <= us[-1] and vs[0] <= v <= vs[-1]):
-            return -math.inf
-        i = min(int((u - us[0]) / (us[1] - us[0])), len(us) - 2)
-        j = min(int((v - vs[0]) / (vs[1] - vs[0])), len(vs) - 2)
-        a = (u - us[i]) / (us[i + 1] - us[i])
-        b = (v - vs[j]) / (vs[j + 1] - vs[j])
-        h = self.top
-        return float(
-            (1 - a) * (1 - b) * h[j, i]
-            + a * (1 - b) * h[j, i + 1]
-            + (1 - a) * b * h[j + 1, i]
-            + a * b * h[j + 1, i + 1]
-        )
-
-
-def sample_bed(
-    terrain: TerrainHeights,
-    loose_top: LooseTop | None,
-    back: tuple[float, float],
-    heading: float,
-    us: FloatArray,
-    vs: FloatArray,
-) -> BedGrid:
-    """The solid heights and the material's top (the loose layer's where there is one) on a
-    bed's grid: point (u, v) lies at ``back + u * (cos h, sin h) + v * (-sin h, cos h)``."""
-    cos_h, sin_h = math.cos(heading), math.sin(heading)
-    solid = np.empty((len(vs), len(us)))
-    top = np.empty_like(solid)
-    for j, v in enumerate(vs):
-        for i, u in enumerate(us):
-            x = float(back[0] + cos_h * u - sin_h * v)
-            y = float(back[1] + sin_h * u + cos_h * v)
-            solid[j, i] = terrain.height_at(x, y)
-            top[j, i] = solid[j, i] if loose_top is None else max(solid[j, i], loose_top(x, y))
-    return BedGrid(back, heading, np.asarray(us), np.asarray(vs), solid, top)
-
-
-def _heading(rotation: FloatArray, velocity: FloatArray, tip: FloatArray) -> float:
-    """rad, the dig's direction in base_link's xy plane: the scoop's +x (cutting edge first)
-    projected, or else its tip velocity, or else away from the lander."""
-    for vector in (rotation[:, 0], velocity, tip):
-        horizontal = np.asarray(vector[:2], dtype=np.float64)
-        if math.hypot(horizontal[0], horizontal[1]) > 0.2 * math.sqrt(float(vector @ vector)):
-            return math.atan2(horizontal[1], horizontal[0])
-    return 0.0
 
 
 def _check_divergence(wrench: list[float], max_speed: float, config: LiveConfig) -> None:

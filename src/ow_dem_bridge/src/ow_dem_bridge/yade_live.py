@@ -16,7 +16,8 @@ at the back of the bed on its floor; the caller transforms poses and velocities 
 * ``template``: make (or reuse) the settled template bed: ``job`` is a settle job of
   :func:`yade_dig.settle` (its ``bed_file`` the cache file). A bed is settled once per material and
   size, saved to a temporary file and renamed, so that concurrent workers never read half a file,
-  and every bed is then loaded from that file (the same state bit for bit).
+  and every bed is then loaded from that file (the same state bit for bit). Answers its sphere
+  count and its ``solid_fraction`` (:func:`solid_fraction`: spheres' volume over bulk volume).
 * ``bed``: load the template, carve its surface down to the material's top (grid over the bed:
   ``u``, ``v`` axes, ``top[iv][iu]``, z of the loose layer's top where loose regolith lies on the
   solid surface ``h[iv][iu]``, else of that surface; ``top`` absent: ``h``), spawn the tool's
@@ -32,7 +33,7 @@ at the back of the bed on its floor; the caller transforms poses and velocities 
   ``steps`` DEM steps, reading nothing: the simulation steps in which the tool was out of the
   ground (no exchange) still pass in the DEM, the tool moving as it moved.
 * ``finish``: the sample: spheres whose centres lie in the tool's link-frame bounding box (count,
-  volume m3, mass kg); the bed is kept until the next ``bed``.
+  the spheres' own volume m3, mass kg); the bed is kept until the next ``bed``.
 * ``quit``: exit.
 """
 
@@ -205,7 +206,12 @@ class Worker:
         O.reset()
         O.load(path)
         spheres = sum(1 for b in O.bodies if isinstance(b.shape, Sphere))
-        return {"ok": True, "cached": cached, "template_spheres": spheres}
+        return {
+            "ok": True,
+            "cached": cached,
+            "template_spheres": spheres,
+            "solid_fraction": solid_fraction(job),
+        }
 
     def make_bed(self, request: dict[str, Any]) -> dict[str, Any]:
         """Load the template, carve it to the terrain, place the tool."""
@@ -329,6 +335,26 @@ class Worker:
             "particles": particles,
             "time": O.time,
         }
+
+
+def solid_fraction(job: dict[str, Any]) -> float:
+    """The loaded template's solid fraction (1 - porosity): the volume of the spheres whose
+    centres lie in the bed's box shrunk by a mean diameter from its walls, floor and top (away
+    from the looser packing along them), over that box's volume."""
+    margin = 2.0 * job["particle_radius"]
+    bed = job["bed"]
+    lo = (margin, -bed["width"] / 2 + margin, margin)
+    hi = (bed["length"] - margin, bed["width"] / 2 - margin, bed["depth"] - margin)
+    if not all(h > lo_i for lo_i, h in zip(lo, hi, strict=True)):
+        msg = f"the bed {bed} is less than two sphere diameters ({2 * margin} m) thick"
+        raise ValueError(msg)
+    box = math.prod(h - lo_i for lo_i, h in zip(lo, hi, strict=True))
+    solid = sum(
+        4.0 / 3.0 * math.pi * b.shape.radius**3
+        for b in O.bodies
+        if isinstance(b.shape, Sphere) and all(lo[i] <= b.state.pos[i] <= hi[i] for i in range(3))
+    )
+    return solid / box
 
 
 def bilinear(us: list[float], vs: list[float], h: list[list[float]], u: float, v: float) -> float:

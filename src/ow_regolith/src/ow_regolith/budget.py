@@ -13,11 +13,11 @@ lander, or beyond the height map): it is lost. ``ingested`` is what DockIngestSa
 the dock.
 
 Every change is one of the transfers below, which moves the same bulk out of one account and
-into another (or into ``excavated`` and ``in_scoop`` at once), so the equation holds exactly, for
-every (layer, material) component, after every call: volumes are integer units and nothing is
-rounded here. The only rounding is where a float volume first becomes units (a cut of the height
-map, :meth:`~ow_regolith.materials.LayerColumn.bulk_between`): at most half a unit (5e-19 m^3) per
-cell and cut.
+into another (or into, or out of, ``excavated`` and ``in_scoop`` at once), so the equation holds
+exactly, for every (layer, material) component, after every call: volumes are integer units and
+nothing is rounded here. The only rounding is where a float volume first becomes units (a cut of
+the height map, :meth:`~ow_regolith.materials.LayerColumn.bulk_between`): at most half a unit
+(5e-19 m^3) per cell and cut.
 """
 
 from __future__ import annotations
@@ -104,6 +104,23 @@ class RegolithBudget:
         """The scoop takes ``bulk`` from the ground: into ``in_scoop``, counted as excavated."""
         self._accounts[Account.EXCAVATED] += bulk
         self._accounts[Account.IN_SCOOP] += bulk
+
+    def return_to_ground(self, bulk: Bulk) -> None:
+        """The scoop gives back to the ground ``bulk`` it excavated: out of ``in_scoop`` and out
+        of ``excavated`` at once (the reverse of :meth:`excavate`; an outside model of the dig, the
+        live DEM, holding less than the scoop took).
+
+        Raises:
+            BudgetError: the scoop does not hold ``bulk`` (nothing changes).
+        """
+        try:
+            in_scoop = self._accounts[Account.IN_SCOOP] - bulk
+        except MaterialError as error:
+            msg = f"cannot give {bulk.units} units back to the ground from the scoop: {error}"
+            raise BudgetError(msg) from error
+        # excavated holds in_scoop and more, component by component: this cannot fail.
+        self._accounts[Account.EXCAVATED] -= bulk
+        self._accounts[Account.IN_SCOOP] = in_scoop
 
     def pour(self, bulk: Bulk, into: Account) -> None:
         """``bulk`` leaves the scoop and lands in ``into``: the dock, the terrain (deposited) or

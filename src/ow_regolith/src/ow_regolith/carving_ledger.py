@@ -40,12 +40,13 @@ RAISE_TOLERANCE = 1e-12
 
 @dataclass(frozen=True)
 class HeightChange:
-    """Cells the simulation must raise (deposits), each by its amount.
+    """Cells the simulation must raise (deposits) or lower (a column cut deeper by
+    :meth:`CarvingLedger.deepen`), each by its amount.
 
     Attributes:
         rows: (k,) row of each cell.
         cols: (k,) column of each cell.
-        raise_m: (k,) m, how much each cell rises.
+        raise_m: (k,) m, how much each cell rises (negative: falls).
     """
 
     rows: IndexArray
@@ -204,6 +205,26 @@ class CarvingLedger:
         else:
             self._loose[cell] = rest
         return taken
+
+    def deepen(self, cell: Cell, units: int) -> tuple[Bulk, float]:
+        """Cut ``cell``'s intact column ``units`` (>= 0) deeper: its solid top falls by that
+        volume over the cell's area, and its height with it (the loose regolith the height map
+        shows over the solid top follows it down).
+
+        Returns:
+            (the bulk cut from the column, m the cell fell). The bulk's volume is within a unit of
+            ``units`` (the one rounding of a cut, :meth:`LayerColumn.bulk_between`).
+        """
+        if units <= 0:
+            return Bulk(), 0.0
+        fall = units * UNIT_M3 / self.area_m2
+        original, solid = float(self._original[cell]), float(self._solid_top[cell])
+        bottom = solid - fall
+        bulk = self.column.bulk_between(original - solid, original - bottom, self.area_m2)
+        self._solid_top[cell] = bottom
+        self._heights[cell] -= fall
+        self.removed += bulk
+        return bulk, fall
 
     def deposit(self, x: float, y: float, bulk: Bulk, radius_m: float) -> HeightChange:
         """``bulk`` lands at (x, y) (m, base_link): spread evenly over the cells whose centres

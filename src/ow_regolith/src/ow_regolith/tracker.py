@@ -15,11 +15,16 @@ At each carve update the simulation calls, in this order:
    cell's column, up to its capacity; what does not fit stays loose in the cell. Any other cut (the
    grinder's; a scoop outside a dig) leaves what it cut loose in the cell.
 
-DockIngestSample calls :meth:`RegolithTracker.ingest`. Cells are visited in row-major order and the
-budget changes only through its transfers, so runs are deterministic and the budget exact.
+DockIngestSample calls :meth:`RegolithTracker.ingest`. When a dig phase begins the simulation calls
+:meth:`RegolithTracker.start_dig`; when an outside model of the dig (the live DEM) says what the
+scoop holds at its end, :meth:`RegolithTracker.set_dig_content` makes the dig's content that much.
+Cells are visited in row-major order and the budget changes only through its transfers, so runs
+are deterministic and the budget exact.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -29,7 +34,7 @@ from ow_regolith.budget import Account, RegolithBudget
 from ow_regolith.carving_ledger import CarvingLedger, Cell, HeightChange
 from ow_regolith.config import RegolithConfig
 from ow_regolith.landing import Landing, PourTargets
-from ow_regolith.materials import Bulk, LayerColumn, MaterialDatabase
+from ow_regolith.materials import UNIT_M3, Bulk, LayerColumn, MaterialDatabase, apportion
 from ow_regolith.scoop import ScoopGeometry
 
 FloatArray = npt.NDArray[np.float64]
@@ -43,6 +48,26 @@ LANDING_ACCOUNTS = {
 }
 #: Tool names (as the simulation's carver calls them) whose cuts can go into the scoop.
 SCOOP_TOOL = "scoop"
+
+
+@dataclass(frozen=True)
+class DigContentChange:
+    """What :meth:`RegolithTracker.set_dig_content` changed.
+
+    Attributes:
+        before_units: units the dig had put in the scoop (the geometric model's cut).
+        after_units: units it holds now: those asked for, or fewer when the scoop is full.
+        lowered: the cells whose column was cut deeper (negative ``raise_m``): the simulation
+            must lower its height map so.
+    """
+
+    before_units: int
+    after_units: int
+    lowered: HeightChange
+
+    def record(self) -> dict[str, float]:
+        """The change in m^3 (``before_m3``, ``after_m3``), for reports."""
+        return {"before_m3": self.before_units * UNIT_M3, "after_m3": self.after_units * UNIT_M3}
 
 
 class RegolithTracker:
@@ -77,6 +102,10 @@ class RegolithTracker:
         self.ledger = CarvingLedger(heightmap, config.column_for(terrain))
         #: Where the last pour landed, None before any.
         self.last_landing: Landing | None = None
+        #: What the scoop took in the dig under way (or the last one), and the cells its cut
+        #: lowered or it collected from then.
+        self._dig_taken = Bulk()
+        self._dig_cells: set[Cell] = set()
 
     @property
     def column(self) -> LayerColumn:
@@ -123,21 +152,92 @@ class RegolithTracker:
         into_scoop = tool == SCOOP_TOOL and scoop_digging
         for cell, bulk in removed.items():
             if into_scoop:
+                self._dig_cells.add(cell)
                 self._collect(cell)
                 taken, bulk = bulk.take(min(self.free_units, bulk.units))
-                self.budget.excavate(taken)
+                self._excavate(cell, taken)
             self.ledger.add_loose(cell, bulk)
+
+    def start_dig(self) -> None:
+        """A dig phase begins: what the scoop takes from now on is this dig's (for
+        :meth:`set_dig_content`)."""
+        self._dig_taken = Bulk()
+        self._dig_cells = set()
+
+    def set_dig_content(self, units: int) -> DigContentChange:
+        """The dig that has just ended holds ``units`` (>= 0): an outside model of the dig (the
+        live DEM's sample) says so. What the scoop took since :meth:`start_dig` becomes that.
+
+        * Fewer: the excess goes back to the ground, a well-mixed share of what the dig took,
+          split evenly over the cells the dig cut or collected from (row-major), loose and
+          undrawn (as what a full scoop leaves); ``excavated`` and ``in_scoop`` both fall by it.
+        * More: the scoop takes the difference, up to its capacity, from those cells' undrawn
+          loose regolith (row-major, as it collects), then from their columns, each cut evenly
+          deeper (:meth:`CarvingLedger.deepen`; the height map must follow,
+          :attr:`DigContentChange.lowered`). A dig that took from no cell takes nothing more.
+
+        Call it when the dig phase has ended, before the scoop pours: it still holds what the
+        dig took.
+
+        Raises:
+            BudgetError: the scoop no longer holds what the dig took (nothing changes).
+        """
+        before = self._dig_taken.units
+        cells = sorted(self._dig_cells)
+        lowered = HeightChange.none()
+        if units < before:
+            back, kept = self._dig_taken.take(before - units)
+            self.budget.return_to_ground(back)
+            self._dig_taken = kept
+            for cell, part in zip(cells, back.split(len(cells)), strict=True):
+                self.ledger.add_loose(cell, part)
+        elif units > before and cells:
+            need = min(units - before, self.free_units)
+            for cell in cells:
+                taken = self.ledger.take_undrawn(cell, need)
+                self._excavate(cell, taken)
+                need -= taken.units
+            lowered = self._cut_deeper(cells, need)
+        return DigContentChange(before, self._dig_taken.units, lowered)
 
     def ingest(self) -> Bulk:
         """DockIngestSample: the dock's content is ingested. Returns it (empty: no sample)."""
         return self.budget.ingest()
 
     # ------------------------------------------------------------------ inside
+    def _excavate(self, cell: Cell, bulk: Bulk) -> None:
+        """The scoop takes ``bulk`` from ``cell`` in the dig under way."""
+        self.budget.excavate(bulk)
+        if not bulk.is_empty:
+            self._dig_taken += bulk
+            self._dig_cells.add(cell)
+
     def _collect(self, cell: Cell) -> None:
         """The scoop takes ``cell``'s undrawn loose regolith, as much as fits."""
         free = self.free_units
         if free:
-            self.budget.excavate(self.ledger.take_undrawn(cell, free))
+            self._excavate(cell, self.ledger.take_undrawn(cell, free))
+
+    def _cut_deeper(self, cells: list[Cell], units: int) -> HeightChange:
+        """The scoop takes ``units`` more from the columns of ``cells``, split evenly, each cut
+        a unit deeper than its share (so that the cut's rounding never leaves it short) and the
+        surplus left loose in the cell; the cells' fall."""
+        if units <= 0:
+            return HeightChange.none()
+        fallen: list[tuple[Cell, float]] = []
+        for cell, share in zip(cells, apportion(units, [1] * len(cells)), strict=True):
+            if not share:
+                continue
+            cut, fall = self.ledger.deepen(cell, share + 1)
+            taken, rest = cut.take(min(share, cut.units))
+            self._excavate(cell, taken)
+            self.ledger.add_loose(cell, rest)
+            fallen.append((cell, fall))
+        return HeightChange(
+            np.array([cell[0] for cell, _ in fallen], dtype=np.intp),
+            np.array([cell[1] for cell, _ in fallen], dtype=np.intp),
+            -np.array([fall for _, fall in fallen]),
+        )
 
     def _collect_under_edge(self, X_base_scoop: FloatArray) -> None:
         cells: list[Cell] = []

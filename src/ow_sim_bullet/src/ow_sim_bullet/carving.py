@@ -364,14 +364,30 @@ class TerrainCarver:
             ValueError: arrays of different lengths, a cell beyond the height map, or a negative
                 or non-finite raise.
         """
+        self._shift_cells(rows, cols, raise_m, 1.0, "raise")
+
+    def lower_cells(self, rows: IndexArray, cols: IndexArray, lower_m: FloatArray) -> None:
+        """Lower cells (rows[k], cols[k]) by lower_m[k] (m, >= 0): a column the regolith model
+        cut deeper (the surface follows at :meth:`commit`).
+
+        Raises:
+            ValueError: arrays of different lengths, a cell beyond the height map, a negative or
+                non-finite lowering, or one below the surface's floor.
+        """
+        self._shift_cells(rows, cols, lower_m, -1.0, "lowering")
+
+    def _shift_cells(
+        self, rows: IndexArray, cols: IndexArray, amount_m: FloatArray, sign: float, what: str
+    ) -> None:
+        """Move cells up (``sign`` 1) or down (-1) by ``amount_m`` (m, >= 0)."""
         rows = np.asarray(rows, dtype=np.intp)
         cols = np.asarray(cols, dtype=np.intp)
-        raise_m = np.asarray(raise_m, dtype=np.float64)
+        amount_m = np.asarray(amount_m, dtype=np.float64)
         if not len(rows):
             return
         n_rows, n_cols = self._heights.shape
-        if not (len(rows) == len(cols) == len(raise_m)):
-            msg = f"{len(rows)} rows, {len(cols)} columns and {len(raise_m)} raises differ"
+        if not (len(rows) == len(cols) == len(amount_m)):
+            msg = f"{len(rows)} rows, {len(cols)} columns and {len(amount_m)} {what}s differ"
             raise ValueError(msg)
         if rows.min() < 0 or rows.max() >= n_rows or cols.min() < 0 or cols.max() >= n_cols:
             msg = (
@@ -379,11 +395,15 @@ class TerrainCarver:
                 f"{int(cols.max())} are not all within the {n_rows} x {n_cols} height map"
             )
             raise ValueError(msg)
-        if not (np.all(np.isfinite(raise_m)) and raise_m.min() >= 0.0):
-            bad = float(raise_m[~(np.isfinite(raise_m) & (raise_m >= 0.0))][0])
-            msg = f"a raise must be finite and >= 0 m, got {bad!r} m"
+        if not (np.all(np.isfinite(amount_m)) and amount_m.min() >= 0.0):
+            bad = float(amount_m[~(np.isfinite(amount_m) & (amount_m >= 0.0))][0])
+            msg = f"a {what} must be finite and >= 0 m, got {bad!r} m"
             raise ValueError(msg)
-        np.add.at(self._heights, (rows, cols), raise_m)
+        floor = self._surface.floor + FLOOR_MARGIN
+        if sign < 0 and float((self._heights[rows, cols] - amount_m).min()) < floor:
+            msg = f"a {what} of up to {float(amount_m.max())!r} m goes below the floor {floor} m"
+            raise ValueError(msg)
+        np.add.at(self._heights, (rows, cols), sign * amount_m)
         self._changed_rows += [int(rows.min()), int(rows.max())]
         self._changed_cols += [int(cols.min()), int(cols.max())]
         self._height_bound = max(self._height_bound, float(self._heights.max()) + 1e-9)

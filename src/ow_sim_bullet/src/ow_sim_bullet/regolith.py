@@ -4,8 +4,10 @@ of every cut at each carve update, and the version of its budget the node publis
 :meth:`BulletSim._carve <ow_sim_bullet.sim_core.BulletSim>` calls, once per carve update and in
 this order, :meth:`SimRegolith.scoop_moved` (only while the scoop digs or holds regolith: nothing
 else can change then) and :meth:`SimRegolith.terrain_cut` for each tool's cut
-(:class:`~ow_sim_bullet.carving.CutWindow`). The model and its budget: docs/regolith.md. No
-pybullet, no ROS.
+(:class:`~ow_sim_bullet.carving.CutWindow`). When the scoop's dig phase begins it calls
+:meth:`SimRegolith.start_dig`; when a live DEM dig ends with a sample,
+:meth:`SimRegolith.set_dig_content` makes the dig's content the sample's bulk volume. The model
+and its budget: docs/regolith.md. No pybullet, no ROS.
 """
 
 from __future__ import annotations
@@ -20,9 +22,9 @@ from ow_regolith.budget import BudgetSnapshot
 from ow_regolith.carving_ledger import HeightChange
 from ow_regolith.config import RegolithConfig
 from ow_regolith.landing import PourTargets
-from ow_regolith.materials import Bulk, LayerColumn, MaterialDatabase
+from ow_regolith.materials import Bulk, LayerColumn, MaterialDatabase, units_from_m3
 from ow_regolith.scoop import ScoopGeometry, ScoopShapes
-from ow_regolith.tracker import RegolithTracker
+from ow_regolith.tracker import DigContentChange, RegolithTracker
 from ow_sim_bullet.carving import CutWindow
 
 FloatArray = npt.NDArray[np.float64]
@@ -107,6 +109,24 @@ class SimRegolith:
         """
         self.tracker.terrain_cut(tool, cut.before, cut.after, scoop_digging, cut.offset)
         self._note_change()
+
+    def start_dig(self) -> None:
+        """The scoop's dig phase begins (:meth:`RegolithTracker.start_dig`)."""
+        self.tracker.start_dig()
+
+    def set_dig_content(self, volume_m3: float) -> DigContentChange:
+        """The dig that has just ended holds ``volume_m3`` (m^3 of regolith in bulk, >= 0): what
+        the scoop took in it becomes that, to the unit, within its capacity
+        (:meth:`RegolithTracker.set_dig_content`). The caller applies the returned change's
+        ``lowered`` to its height map.
+
+        Raises:
+            MaterialError: a negative or non-finite volume.
+            BudgetError: the scoop no longer holds what the dig took (nothing changes).
+        """
+        change = self.tracker.set_dig_content(units_from_m3(volume_m3))
+        self._note_change()
+        return change
 
     def ingest(self) -> Bulk:
         """DockIngestSample: the dock's content is ingested. Returns it (empty: no sample)."""

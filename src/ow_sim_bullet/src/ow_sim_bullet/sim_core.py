@@ -438,13 +438,42 @@ class BulletSim:
             self._next_carve = self.time + self.config.carve_period
             was_digging = self.tracker.dig.phase.digging
             self.tracker.update_digging(q, self.time)
+            digging = self.tracker.dig.phase.digging
+            if digging and not was_digging:
+                self.regolith.start_dig()
             if self._live is not None:
-                if was_digging and not self.tracker.dig.phase.digging:
-                    # A failure is logged and reported by the model; the forces were applied.
-                    with contextlib.suppress(DemRunError):
-                        self._live.dig_ended()  # it ends its dig here
-                self.finished_dem_digs += ((self.time, d) for d in self._live.take_finished())
+                self._finish_dem_digs(self._live, was_digging and not digging)
             self._carve()
+
+    def _finish_dem_digs(self, live: LockstepModel, dig_phase_ended: bool) -> None:
+        """At a carve update with the live DEM: end its dig when the dig phase has just ended
+        (the scoop's content for that dig becomes the DEM's sample, :meth:`_take_dem_sample`),
+        and keep every dig it finished since the last update."""
+        ended = None
+        if dig_phase_ended:
+            # A failure is logged and reported by the model; the forces were applied, and the
+            # scoop keeps the geometric model's content.
+            with contextlib.suppress(DemRunError):
+                ended = live.dig_ended()
+        change = self._take_dem_sample(ended) if ended else None
+        for summary in live.take_finished():
+            if change is not None and ended and summary["start_time"] == ended["start_time"]:
+                summary = {**summary, "regolith": change}
+            self.finished_dem_digs.append((self.time, summary))
+
+    def _take_dem_sample(self, dig: dict[str, Any]) -> dict[str, float] | None:
+        """The scoop's content for the dig that just ended becomes the live DEM's sample, in
+        bulk (:meth:`SimRegolith.set_dig_content`); a column the scoop had to cut deeper for it
+        is lowered in the height map. What changed (m^3 before and after), None without a
+        sample."""
+        sample = dig.get("sample")
+        if not sample:
+            return None
+        change = self.regolith.set_dig_content(float(sample["sample_bulk_volume_m3"]))
+        lowered = change.lowered
+        if lowered:
+            self.carver.lower_cells(lowered.rows, lowered.cols, -lowered.raise_m)
+        return change.record()
 
     def _carve(self) -> None:
         """One carve update: the regolith follows the scoop (it collects in a dig, spills and
