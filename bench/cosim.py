@@ -111,16 +111,7 @@ def run(quick: bool) -> tuple[Shadowed, float, float, float]:
     q = ops.model.q_from(dict(zip(sim.names, sim.sample.position.tolist(), strict=True)))
     plan = ops.plan("dig_linear", q, sim.heightmap, DIG)
     timed = plan.timed(TimingConfig(), ops.planner.velocity_limits)
-    sim.set_trajectory(
-        JointTrajectory.build(
-            timed.joints,
-            sim.time,
-            timed.times.tolist(),
-            timed.positions.tolist(),
-            timed.velocities.tolist(),
-            sim.names,
-        )
-    )
+    sim.set_trajectory(JointTrajectory.from_plan(timed, sim.time, sim.names))
     # From the end of the first exchange (the bed made) to the end of the last one, the steps in
     # between (the scoop out of the ground for a step, the DEM gliding through it) included.
     first: tuple[float, float, float] | None = None

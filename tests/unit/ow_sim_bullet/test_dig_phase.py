@@ -210,16 +210,7 @@ def _execute(sim: BulletSim, ops: Operations, name: str, request: dict | None = 
     q = ops.model.q_from(dict(zip(sim.names, sim.sample.position.tolist(), strict=True)))
     plan = ops.plan(name, q, sim.heightmap, request or {})
     trajectory = plan.timed(TimingConfig(), ops.planner.velocity_limits)
-    sim.set_trajectory(
-        JointTrajectory.build(
-            trajectory.joints,
-            sim.time,
-            trajectory.times.tolist(),
-            trajectory.positions.tolist(),
-            trajectory.velocities.tolist(),
-            sim.names,
-        )
-    )
+    sim.set_trajectory(JointTrajectory.from_plan(trajectory, sim.time, sim.names))
     return trajectory.duration
 
 

@@ -63,16 +63,7 @@ def test_the_scoop_holds_the_dem_sample_when_a_live_dig_ends(tmp_path: Path):
         timed = ops.plan("dig_linear", q, sim.heightmap, DIG).timed(
             TimingConfig(), ops.planner.velocity_limits
         )
-        sim.set_trajectory(
-            JointTrajectory.build(
-                timed.joints,
-                sim.time,
-                timed.times.tolist(),
-                timed.positions.tolist(),
-                timed.velocities.tolist(),
-                sim.names,
-            )
-        )
+        sim.set_trajectory(JointTrajectory.from_plan(timed, sim.time, sim.names))
         budget = sim.regolith.tracker.budget
         geometric = 0
         while not sim.finished_dem_digs and sim.time < timed.duration:

@@ -255,16 +255,7 @@ def _follow(sim: BulletSim, ops: Operations, name: str, request: dict) -> None:
     q = ops.model.q_from(dict(zip(sim.names, sim.sample.position.tolist(), strict=True)))
     plan = ops.plan(name, q, sim.heightmap, request)
     timed = plan.timed(TimingConfig(), ops.planner.velocity_limits)
-    sim.set_trajectory(
-        JointTrajectory.build(
-            timed.joints,
-            sim.time,
-            timed.times.tolist(),
-            timed.positions.tolist(),
-            timed.velocities.tolist(),
-            sim.names,
-        )
-    )
+    sim.set_trajectory(JointTrajectory.from_plan(timed, sim.time, sim.names))
     for _ in range(round((timed.duration + 1.0) / sim.dt)):
         sim.step()
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ow_description.trajectory import Spline
+from ow_description.trajectory import Spline, Trajectory
 from ow_sim_bullet.errors import CommandError
 
 FloatArray = npt.NDArray[np.float64]
@@ -39,6 +39,26 @@ class JointTrajectory:
     times: FloatArray
     positions: FloatArray
     velocities: FloatArray | None
+
+    @classmethod
+    def from_plan(
+        cls, plan: Trajectory, start_time: float, known_joints: Sequence[str]
+    ) -> JointTrajectory:
+        """A timed plan (the arm services' trajectory, :meth:`OperationPlan.timed`) started at
+        ``start_time`` s of sim time: what publishing it on ``/sim/joint_trajectory`` gives,
+        for a caller that drives the simulation in process.
+
+        Raises:
+            CommandError: as :meth:`build`.
+        """
+        return cls.build(
+            plan.joints,
+            start_time,
+            plan.times.tolist(),
+            plan.positions.tolist(),
+            plan.velocities.tolist(),
+            known_joints,
+        )
 
     @classmethod
     def build(
