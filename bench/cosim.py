@@ -85,6 +85,12 @@ class Shadowed:
     def close(self) -> None:
         self.live.close()
 
+    def dig_ended(self) -> dict[str, Any] | None:
+        return self.live.dig_ended()
+
+    def take_finished(self) -> list[dict[str, Any]]:
+        return self.live.take_finished()
+
     def wrench(self, state: ToolState) -> Wrench:
         dig = self.live.digs[-1] if self.live.digs else None
         before = len(dig.times) if dig is not None else 0
