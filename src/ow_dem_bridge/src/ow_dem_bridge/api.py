@@ -126,7 +126,9 @@ class LockstepModel(TerrainForceModel, Protocol):
         after a dig phase): the dig under way ends there, at the same simulated time in every
         run, and whatever it holds at its end is counted (the DEM: the spheres in the scoop).
         Returns that dig as :meth:`take_finished` will (its ``sample`` with
-        ``sample_bulk_volume_m3``, m^3 of regolith in bulk), None when no dig was under way.
+        ``sample_bulk_volume_m3``, m^3 of regolith in bulk), and besides ``surface``: what the
+        dig did to the terrain's surface (``ow_dem_bridge.live_bed.DemSurface``, its
+        ``change_at(x, y)`` m) or None; None when no dig was under way.
 
         Raises:
             DemRunError: the model failed while ending the dig.

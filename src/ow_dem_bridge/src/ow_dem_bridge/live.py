@@ -44,7 +44,7 @@ import os
 import shutil
 import sys
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -59,7 +59,7 @@ from ow_dem_bridge.api import (
 )
 from ow_dem_bridge.errors import ConfigError, DemRunError
 from ow_dem_bridge.geometry import ToolGeometry, load_tool
-from ow_dem_bridge.live_bed import BedFrame, BedGrid, dig_heading, sample_bed
+from ow_dem_bridge.live_bed import BedFrame, BedGrid, DemSurface, dig_heading, sample_bed
 from ow_dem_bridge.live_config import MATERIALS, LiveConfig, steps_per_exchange
 from ow_dem_bridge.make_tables import ALUMINIUM, Soil
 from ow_dem_bridge.yade_worker import YadeWorker
@@ -103,6 +103,9 @@ class LiveDig:
             ``sample_bulk_volume_m3`` the regolith's volume they make at the bed's packing,
             ``sample_volume_m3 / solid_fraction``), None before.
         error: why the DEM failed during this dig, or None.
+        surface: what the dig did to its bed's surface (:class:`DemSurface`: the change of its
+            bulk heights on a coarse grid, the sample left out), None before it ended or when
+            it failed. Not in :meth:`summary` (the simulation's, not the reports').
     """
 
     start_time: float
@@ -124,11 +127,12 @@ class LiveDig:
     wrenches: list[list[float]] = field(default_factory=list)
     sample: dict[str, float] | None = None
     error: str | None = None
+    surface: DemSurface | None = None
 
     def summary(self) -> dict[str, Any]:
-        """The dig without its per-exchange arrays (for reports)."""
-        record = asdict(self)
-        for key in ("times", "depths", "progress", "wrenches"):
+        """The dig without its per-exchange arrays and its surface (for reports)."""
+        record = asdict(replace(self, surface=None))
+        for key in ("times", "depths", "progress", "wrenches", "surface"):
             record.pop(key)
         record["exchanges"] = len(self.times)
         return record
@@ -240,13 +244,15 @@ class LiveDemModel:
         now, not at the next dig's start, which the mission's last dig never has).
 
         Returns:
-            The dig it ended (:meth:`LiveDig.summary`), None when none was under way.
+            The dig it ended (:meth:`LiveDig.summary`, and ``surface``: what it did to its
+            bed's surface, :class:`~ow_dem_bridge.live_bed.DemSurface`), None when none was
+            under way.
 
         Raises:
             DemRunError: the DEM process failed while counting the sample.
         """
         dig = self.finish_dig()
-        return None if dig is None else dig.summary()
+        return None if dig is None else {**dig.summary(), "surface": dig.surface}
 
     def take_finished(self) -> list[dict[str, Any]]:
         """The digs that ended (their sample counted) or failed since the last call, oldest
@@ -274,6 +280,7 @@ class LiveDemModel:
             k: float(reply[k]) for k in ("sample_particles", "sample_volume_m3", "sample_mass_kg")
         }
         dig.sample["sample_bulk_volume_m3"] = dig.sample["sample_volume_m3"] / dig.solid_fraction
+        dig.surface = DemSurface.from_reply(reply["surface"], self._bed)
         self._finished.append(dig)
         LOG.info(
             "live DEM: the dig that started at t=%.3f s ended after %d exchanges (%.1f s of "

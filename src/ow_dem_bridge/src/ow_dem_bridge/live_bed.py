@@ -1,5 +1,6 @@
 """The live DEM's bed in the simulation's frame: the terrain sampled over a bed's footprint
-(:class:`BedGrid`, :func:`sample_bed`), the bed's frame (:class:`BedFrame`) and the dig's heading.
+(:class:`BedGrid`, :func:`sample_bed`), the bed's frame (:class:`BedFrame`), the dig's heading,
+and what a dig did to the bed's surface (:class:`DemSurface`).
 No YADE, no ROS: :mod:`ow_dem_bridge.live` uses these to make a dig's bed.
 """
 
@@ -7,8 +8,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ow_dem_bridge.api import FloatArray, LooseTop, TerrainHeights
 
@@ -129,3 +132,77 @@ def dig_heading(rotation: FloatArray, velocity: FloatArray, tip: FloatArray) -> 
         if math.hypot(horizontal[0], horizontal[1]) > 0.2 * math.sqrt(float(vector @ vector)):
             return math.atan2(horizontal[1], horizontal[0])
     return 0.0
+
+
+@dataclass(frozen=True)
+class DemSurface:
+    """What a DEM dig did to its bed's surface: the change of its bulk heights
+    (:mod:`ow_dem_bridge.bed_surface`) from when the bed was made to when the dig ended, the
+    sample's spheres left out, on a coarse grid of cells in the bed frame.
+
+    Attributes:
+        frame: the bed's frame (origin at the back of the bed, on its floor; heading).
+        cell_u: m, a cell's side along the dig.
+        cell_v: m, its side across (cells from v = -width / 2, left positive).
+        change_m: (nv, nu) m, each cell's change (negative: the bed fell there).
+    """
+
+    frame: BedFrame
+    cell_u: float
+    cell_v: float
+    change_m: FloatArray
+
+    @classmethod
+    def from_reply(cls, reply: dict[str, Any], frame: BedFrame) -> DemSurface:
+        """The ``surface`` of YADE's ``finish`` reply (``length``, ``width``, ``nu``, ``nv``,
+        ``change``) in the bed ``frame``."""
+        change = np.array(reply["change"], dtype=np.float64).reshape(reply["nv"], reply["nu"])
+        return cls(
+            frame, float(reply["length"]) / reply["nu"], float(reply["width"]) / reply["nv"], change
+        )
+
+    def _to_bed(self, x: FloatArray, y: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """(u, v) m in the grid's frame (u from the back edge, v from the right edge)."""
+        c, s = math.cos(self.frame.heading), math.sin(self.frame.heading)
+        dx, dy = x - self.frame.origin[0], y - self.frame.origin[1]
+        nv = self.change_m.shape[0]
+        return c * dx + s * dy, -s * dx + c * dy + nv * self.cell_v / 2
+
+    def centres(self) -> FloatArray:
+        """(nv, nu, 2) m, each cell's centre (x, y) in base_link."""
+        nv, nu = self.change_m.shape
+        u = (np.arange(nu) + 0.5) * self.cell_u
+        v = (np.arange(nv) + 0.5) * self.cell_v - nv * self.cell_v / 2
+        uu, vv = np.meshgrid(u, v)
+        c, s = math.cos(self.frame.heading), math.sin(self.frame.heading)
+        x = self.frame.origin[0] + c * uu - s * vv
+        y = self.frame.origin[1] + s * uu + c * vv
+        return np.stack([x, y], axis=-1)
+
+    def covers(self, x: FloatArray, y: FloatArray) -> npt.NDArray[np.bool_]:
+        """Whether each point (x, y) m (base_link, any shape) lies on the grid's footprint."""
+        u, v = self._to_bed(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+        nv, nu = self.change_m.shape
+        return (u >= 0) & (u <= nu * self.cell_u) & (v >= 0) & (v <= nv * self.cell_v)
+
+    def change_at(self, x: FloatArray, y: FloatArray) -> FloatArray:
+        """m, the change at each point (x, y) m (base_link, any shape): bilinear between the
+        cells' centres, held from the outermost centres to the footprint's edge, 0 outside it."""
+        x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+        u, v = self._to_bed(x, y)
+        nv, nu = self.change_m.shape
+        # In the grid padded by a copy of its edge cells, cell k's centre is at k + 1: the change
+        # holds from the outermost centres to the footprint's edge.
+        padded = np.pad(self.change_m, 1, mode="edge")
+        fu = np.clip(u / self.cell_u + 0.5, 0.0, nu + 1.0)
+        fv = np.clip(v / self.cell_v + 0.5, 0.0, nv + 1.0)
+        i = np.minimum(fu.astype(np.intp), nu)
+        j = np.minimum(fv.astype(np.intp), nv)
+        a, b = fu - i, fv - j
+        value = (
+            (1 - a) * (1 - b) * padded[j, i]
+            + a * (1 - b) * padded[j, i + 1]
+            + (1 - a) * b * padded[j + 1, i]
+            + a * b * padded[j + 1, i + 1]
+        )
+        return np.where(self.covers(x, y), value, 0.0)

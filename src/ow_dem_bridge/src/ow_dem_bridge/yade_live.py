@@ -33,7 +33,10 @@ at the back of the bed on its floor; the caller transforms poses and velocities 
   ``steps`` DEM steps, reading nothing: the simulation steps in which the tool was out of the
   ground (no exchange) still pass in the DEM, the tool moving as it moved.
 * ``finish``: the sample: spheres whose centres lie in the tool's link-frame bounding box (count,
-  the spheres' own volume m3, mass kg); the bed is kept until the next ``bed``.
+  the spheres' own volume m3, mass kg), and the bed's ``surface``: its bulk heights
+  (:mod:`bed_surface`, the sample's spheres left out) minus those when the bed was made, per
+  cell (``change[iv][iu]`` m, with the grid's ``length``, ``width``, ``nu``, ``nv``); the bed
+  is kept until the next ``bed``.
 * ``quit``: exit.
 """
 
@@ -48,6 +51,7 @@ from typing import Any
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(sys.argv[0])))
 
+import bed_surface  # the sibling module: the bed's bulk heights (plain Python)
 import yade_dig  # the sibling script: materials, engines, settling
 from yade import O, utils
 from yade._utils import sumForces, sumTorques
@@ -175,6 +179,10 @@ class Worker:
         self.tool: LiveTool | None = None
         self.reader: Reader | None = None
         self.density = 0.0
+        self.solid_fraction = 1.0
+        self.grid: bed_surface.SurfaceGrid | None = None
+        #: the bed's bulk heights when it was made (m, ``[iv][iu]``).
+        self.heights_made: list[list[float]] = []
 
     # ------------------------------------------------------------------ requests
     def handle(self, request: dict[str, Any]) -> dict[str, Any]:
@@ -206,11 +214,15 @@ class Worker:
         O.reset()
         O.load(path)
         spheres = sum(1 for b in O.bodies if isinstance(b.shape, Sphere))
+        self.solid_fraction = solid_fraction(job)
+        self.grid = bed_surface.SurfaceGrid.over_bed(
+            job["bed"]["length"], job["bed"]["width"], job["particle_radius"]
+        )
         return {
             "ok": True,
             "cached": cached,
             "template_spheres": spheres,
-            "solid_fraction": solid_fraction(job),
+            "solid_fraction": self.solid_fraction,
         }
 
     def make_bed(self, request: dict[str, Any]) -> dict[str, Any]:
@@ -254,6 +266,7 @@ class Worker:
         ]
         O.dt = request["dt"]
         spheres = sum(1 for b in O.bodies if isinstance(b.shape, Sphere))
+        self.heights_made = self.bulk_heights(None)
         return {
             "ok": True,
             "particles": spheres,
@@ -327,14 +340,28 @@ class Worker:
                 count += 1
                 volume += 4.0 / 3.0 * math.pi * body.shape.radius**3
         particles = sum(1 for b in O.bodies if isinstance(b.shape, Sphere))
+        assert self.grid is not None  # made with the template, before any bed
+        change = bed_surface.height_change(self.heights_made, self.bulk_heights(tool))
         return {
             "ok": True,
+            "surface": {**self.grid.to_dict(), "change": change},
             "sample_particles": count,
             "sample_volume_m3": volume,
             "sample_mass_kg": volume * self.density,
             "particles": particles,
             "time": O.time,
         }
+
+    def bulk_heights(self, tool: LiveTool | None) -> list[list[float]]:
+        """The bed's bulk heights (:func:`bed_surface.bulk_heights`), without the spheres in
+        ``tool``'s bounding box."""
+        assert self.grid is not None
+        spheres = (
+            (b.state.pos[0], b.state.pos[1], b.shape.radius)
+            for b in O.bodies
+            if isinstance(b.shape, Sphere) and (tool is None or not tool.contains(b.state.pos))
+        )
+        return bed_surface.bulk_heights(self.grid, spheres, self.solid_fraction)
 
 
 def solid_fraction(job: dict[str, Any]) -> float:

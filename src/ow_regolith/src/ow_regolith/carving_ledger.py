@@ -19,6 +19,7 @@ already, and undrawn from then on). A digging scoop collects a cell's undrawn lo
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,7 +27,7 @@ import numpy.typing as npt
 
 from ow_description.terrain import HeightMap
 from ow_regolith.errors import CarvingError
-from ow_regolith.materials import UNIT_M3, UNITS_PER_M3, Bulk, LayerColumn, total
+from ow_regolith.materials import UNIT_M3, UNITS_PER_M3, Bulk, LayerColumn, apportion, total
 
 FloatArray = npt.NDArray[np.float64]
 IndexArray = npt.NDArray[np.intp]
@@ -65,6 +66,36 @@ class HeightChange:
     def apply(self, heights: FloatArray) -> None:
         """Raise ``heights`` (rows, cols) m in place."""
         np.add.at(heights, (self.rows, self.cols), self.raise_m)
+
+
+@dataclass(frozen=True)
+class TerrainMove:
+    """What :meth:`CarvingLedger.reshape` moved within the terrain.
+
+    Attributes:
+        change: every cell whose height changed, by how much (m; negative: it fell).
+        shown_units: undrawn loose regolith the rising cells now show (it lay there unseen).
+        moved_units: units taken from the falling cells (their drawn loose regolith and column).
+        raised_units: of those, the units laid on the rising cells; the rest lies loose, undrawn,
+            in the fallen cells.
+    """
+
+    change: HeightChange
+    shown_units: int
+    moved_units: int
+    raised_units: int
+
+    def record(self) -> dict[str, float]:
+        """For reports: ``cells`` changed, m^3 ``shown_m3``, ``moved_m3`` and ``raised_m3``,
+        the ``largest_m`` change of a cell's height (m, absolute)."""
+        raise_m = self.change.raise_m
+        return {
+            "cells": len(raise_m),
+            "shown_m3": self.shown_units * UNIT_M3,
+            "moved_m3": self.moved_units * UNIT_M3,
+            "raised_m3": self.raised_units * UNIT_M3,
+            "largest_m": float(np.abs(raise_m).max()) if len(raise_m) else 0.0,
+        }
 
 
 class CarvingLedger:
@@ -256,3 +287,101 @@ class CarvingLedger:
             np.array([c[1] for c in cells], dtype=np.intp),
             raise_m,
         )
+
+    def reshape(self, cells: Sequence[Cell], target_m: FloatArray, floor_m: float) -> TerrainMove:
+        """Bring ``cells`` to the heights ``target_m`` (m, base_link z), moving material within
+        the terrain only (nothing is excavated or deposited: the budget is not concerned).
+
+        Cells are taken in row-major order. A cell above its target (raised to ``floor_m`` at
+        least) falls to it: the loose regolith its height shows above the target, then its column
+        down to the target (composition by layer, as any cut), go into a pool. A cell below its
+        target rises: first by showing its own undrawn loose regolith (no material moves), then
+        by what it receives from the pool as loose, drawn regolith: the rest of its shortfall in
+        units, all of them scaled down alike (:func:`apportion`) when the pool holds less.
+        What the pool keeps is split evenly over the fallen cells, loose and undrawn. The
+        terrain's own account (cut from the column = :attr:`removed`, loose) stays exact.
+
+        Args:
+            cells: distinct cells of the terrain.
+            target_m: (len(cells),) m, each cell's target height.
+            floor_m: m, no cell falls below this.
+
+        Returns:
+            What moved; the simulation must move its height map by ``change``.
+
+        Raises:
+            CarvingError: a cell beyond the terrain or twice, a target count that differs, or a
+                non-finite target.
+        """
+        target_m = np.asarray(target_m, dtype=np.float64)
+        rows, cols = self.shape
+        if len(target_m) != len(cells) or not np.all(np.isfinite(target_m)):
+            msg = f"{len(cells)} cells need as many finite target heights, got {target_m!r}"
+            raise CarvingError(msg)
+        if len(set(cells)) != len(cells) or any(
+            not (0 <= r < rows and 0 <= c < cols) for r, c in cells
+        ):
+            msg = f"cells to reshape must be distinct and within the {rows} x {cols} terrain"
+            raise CarvingError(msg)
+        order = sorted(range(len(cells)), key=lambda k: cells[k])
+        before = {cells[k]: float(self._heights[cells[k]]) for k in order}
+        pool = Bulk()
+        shown = 0
+        fallen: list[Cell] = []
+        rising: list[tuple[Cell, int]] = []
+        for k in order:
+            cell = cells[k]
+            height, target = before[cell], max(float(target_m[k]), floor_m)
+            if target < height:
+                pool += self._fall(cell, target)
+                fallen.append(cell)
+            elif target > height:
+                short = round((target - height) * self.area_m2 * UNITS_PER_M3)
+                show = min(max(short, 0), self.undrawn_units(cell))
+                self._heights[cell] += show * UNIT_M3 / self.area_m2
+                shown += show
+                if short > show:
+                    rising.append((cell, short - show))
+        moved = pool.units
+        needs = [short for _, short in rising]
+        if sum(needs) > pool.units:
+            needs = apportion(pool.units, needs)
+        for (cell, _), units in zip(rising, needs, strict=True):
+            part, pool = pool.take(units)
+            self.add_loose(cell, part)
+            self._heights[cell] += part.units * UNIT_M3 / self.area_m2
+        raised = moved - pool.units
+        if not pool.is_empty:
+            for cell, part in zip(fallen, pool.split(len(fallen)), strict=True):
+                self.add_loose(cell, part)
+        changed = [cell for cell in before if self._heights[cell] != before[cell]]
+        return TerrainMove(
+            HeightChange(
+                np.array([c[0] for c in changed], dtype=np.intp),
+                np.array([c[1] for c in changed], dtype=np.intp),
+                np.array([self._heights[c] - before[c] for c in changed]),
+            ),
+            shown,
+            moved,
+            raised,
+        )
+
+    def _fall(self, cell: Cell, target: float) -> Bulk:
+        """Lower ``cell`` to ``target`` m (below its height): the loose regolith its height
+        shows above the target, then its column down to the target; what it lost."""
+        height, solid = float(self._heights[cell]), float(self._solid_top[cell])
+        drawn = self.loose(cell).units - self.undrawn_units(cell)
+        shown = round((height - max(target, solid)) * self.area_m2 * UNITS_PER_M3)
+        taken, rest = self.loose(cell).take(min(max(shown, 0), drawn))
+        if rest.is_empty:
+            self._loose.pop(cell, None)
+        else:
+            self._loose[cell] = rest
+        if target < solid:
+            original = float(self._original[cell])
+            column = self.column.bulk_between(original - solid, original - target, self.area_m2)
+            self._solid_top[cell] = target
+            self.removed += column
+            taken += column
+        self._heights[cell] = target
+        return taken

@@ -17,7 +17,9 @@ At each carve update the simulation calls, in this order:
 
 DockIngestSample calls :meth:`RegolithTracker.ingest`. When a dig phase begins the simulation calls
 :meth:`RegolithTracker.start_dig`; when an outside model of the dig (the live DEM) says what the
-scoop holds at its end, :meth:`RegolithTracker.set_dig_content` makes the dig's content that much.
+scoop holds at its end, :meth:`RegolithTracker.set_dig_content` makes the dig's content that much,
+and what the terrain's surface became, :meth:`RegolithTracker.reshape_terrain` moves the terrain's
+material to it.
 Cells are visited in row-major order and the budget changes only through its transfers, so runs
 are deterministic and the budget exact.
 """
@@ -31,7 +33,7 @@ import numpy.typing as npt
 
 from ow_description.terrain import HeightMap
 from ow_regolith.budget import Account, RegolithBudget
-from ow_regolith.carving_ledger import CarvingLedger, Cell, HeightChange
+from ow_regolith.carving_ledger import CarvingLedger, Cell, HeightChange, TerrainMove
 from ow_regolith.config import RegolithConfig
 from ow_regolith.landing import Landing, PourTargets
 from ow_regolith.materials import UNIT_M3, Bulk, LayerColumn, MaterialDatabase, apportion
@@ -199,6 +201,19 @@ class RegolithTracker:
                 need -= taken.units
             lowered = self._cut_deeper(cells, need)
         return DigContentChange(before, self._dig_taken.units, lowered)
+
+    def reshape_terrain(
+        self, cells: list[Cell], target_m: FloatArray, floor_m: float
+    ) -> TerrainMove:
+        """An outside model of a dig (the live DEM) says what the terrain's surface became:
+        ``cells`` go to the heights ``target_m`` (m) as far as the material the falling ones give
+        up allows, moved within the terrain (:meth:`CarvingLedger.reshape`); the budget does not
+        change. The simulation must move its height map by the returned ``change``.
+
+        Raises:
+            CarvingError: a cell beyond the terrain or twice, or a bad target.
+        """
+        return self.ledger.reshape(cells, target_m, floor_m)
 
     def ingest(self) -> Bulk:
         """DockIngestSample: the dock's content is ingested. Returns it (empty: no sample)."""

@@ -190,6 +190,11 @@ class TerrainCarver:
         hm = self._heightmap
         return HeightMap(self._heights.copy(), hm.resolution, hm.origin_x, hm.origin_y)
 
+    @property
+    def floor_m(self) -> float:
+        """m, the lowest height the terrain may be carved or lowered to."""
+        return self._surface.floor + FLOOR_MARGIN
+
     def height_at(self, x: float, y: float) -> float:
         """m, current terrain height at (x, y) in base_link (bilinear in the height map)."""
         return float(self._heightmap.height_at(x, y))
@@ -296,7 +301,7 @@ class TerrainCarver:
         heights = self._heights.reshape(-1)  # a view: cell (r, c) is r * cols + c
         #: flat offsets of the four corners of a cell from its lower-left corner.
         corner_offsets = np.array((0, 1, cols, cols + 1))
-        floor = self._surface.floor + FLOOR_MARGIN
+        floor = self.floor_m
         x, y, z = rotation @ self._cutters[tool] + position[:, None]
         col = np.floor((x - hm.origin_x) / hm.resolution).astype(np.intp)
         row = np.floor((y - hm.origin_y) / hm.resolution).astype(np.intp)
@@ -399,7 +404,7 @@ class TerrainCarver:
             bad = float(amount_m[~(np.isfinite(amount_m) & (amount_m >= 0.0))][0])
             msg = f"a {what} must be finite and >= 0 m, got {bad!r} m"
             raise ValueError(msg)
-        floor = self._surface.floor + FLOOR_MARGIN
+        floor = self.floor_m
         if sign < 0 and float((self._heights[rows, cols] - amount_m).min()) < floor:
             msg = f"a {what} of up to {float(amount_m.max())!r} m goes below the floor {floor} m"
             raise ValueError(msg)

@@ -6,7 +6,8 @@ this order, :meth:`SimRegolith.scoop_moved` (only while the scoop digs or holds 
 else can change then) and :meth:`SimRegolith.terrain_cut` for each tool's cut
 (:class:`~ow_sim_bullet.carving.CutWindow`). When the scoop's dig phase begins it calls
 :meth:`SimRegolith.start_dig`; when a live DEM dig ends with a sample,
-:meth:`SimRegolith.set_dig_content` makes the dig's content the sample's bulk volume. The model
+:meth:`SimRegolith.set_dig_content` makes the dig's content the sample's bulk volume and
+:meth:`SimRegolith.reshape_terrain` moves the terrain to the DEM's surface. The model
 and its budget: docs/regolith.md. No pybullet, no ROS.
 """
 
@@ -19,7 +20,7 @@ import numpy.typing as npt
 
 from ow_description.terrain import HeightMap
 from ow_regolith.budget import BudgetSnapshot
-from ow_regolith.carving_ledger import HeightChange
+from ow_regolith.carving_ledger import Cell, HeightChange, TerrainMove
 from ow_regolith.config import RegolithConfig
 from ow_regolith.landing import PourTargets
 from ow_regolith.materials import Bulk, LayerColumn, MaterialDatabase, units_from_m3
@@ -127,6 +128,18 @@ class SimRegolith:
         change = self.tracker.set_dig_content(units_from_m3(volume_m3))
         self._note_change()
         return change
+
+    def reshape_terrain(
+        self, cells: list[Cell], target_m: FloatArray, floor_m: float
+    ) -> TerrainMove:
+        """Move the terrain's material within it towards the heights ``target_m`` (m) of
+        ``cells``, none below ``floor_m`` (:meth:`RegolithTracker.reshape_terrain`); the budget
+        does not change. The caller moves its height map by the returned ``change``.
+
+        Raises:
+            CarvingError: a cell beyond the terrain or twice, or a bad target.
+        """
+        return self.tracker.reshape_terrain(cells, target_m, floor_m)
 
     def ingest(self) -> Bulk:
         """DockIngestSample: the dock's content is ingested. Returns it (empty: no sample)."""

@@ -22,7 +22,6 @@ Frames: the lander's ``base_link`` is fixed at the world origin, so world and ba
 
 from __future__ import annotations
 
-import contextlib
 import math
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
@@ -43,6 +42,7 @@ from ow_regolith.errors import RegolithError
 from ow_sim_bullet.bullet_terrain import BulletTerrain
 from ow_sim_bullet.carving import TerrainCarver, collision_surface_points
 from ow_sim_bullet.config import PidGains, SimConfig
+from ow_sim_bullet.dem_terrain import LiveDemDigEnds
 from ow_sim_bullet.errors import CommandError, ConfigError
 from ow_sim_bullet.faults import LOCK_DAMPER, JointLocks, WristFaults
 from ow_sim_bullet.joint_control import FloatArray, JointController
@@ -229,9 +229,12 @@ class BulletSim:
         #: every dig of it that ended or failed, (sim time s of the carve update that learnt it,
         #: the dig's summary), oldest first: a few per mission (the outputs publish each once).
         self.finished_dem_digs: list[tuple[float, dict[str, Any]]] = []
+        #: what the simulation does with the live DEM's digs when they end (None without it).
+        self._dem_digs: LiveDemDigEnds | None = None
         if self._live is not None:  # this terrain, its loose regolith, the physics step
             self._live.attach(self.carver, self.dt, self._loose_top)
             material_top = self._live.material_top
+            self._dem_digs = LiveDemDigEnds(self._live, self.regolith, self.carver, self._scoop_box)
         self.forces = ToolForces(tool_links)
         self.tracker = ToolTracker(
             model,
@@ -272,6 +275,11 @@ class BulletSim:
         ledger = self.regolith.tracker.ledger
         cell = ledger.cell_at(x, y)
         return -math.inf if cell is None else ledger.loose_top(cell)
+
+    def _scoop_box(self) -> tuple[FloatArray, FloatArray]:
+        """(low, high) (3,) m, the scoop link's bounding box in base_link now."""
+        low, high = pb.getAABB(self.robot, self._tool_links["scoop"], physicsClientId=self.client)
+        return np.asarray(low), np.asarray(high)
 
     def _make_surface(self, heightmap: HeightMap) -> BulletTerrain:
         """The terrain as Bullet heightfields, colliding with the tools if ``tool_contact``."""
@@ -393,6 +401,8 @@ class BulletSim:
         default column for "" or a kind without its own)."""
         self.carver.replace(heightmap)
         self.regolith.set_terrain(heightmap, terrain)
+        if self._dem_digs is not None:
+            self._dem_digs.terrain_replaced()
 
     # ------------------------------------------------------------------ stepping
     def step(self) -> None:
@@ -441,39 +451,13 @@ class BulletSim:
             digging = self.tracker.dig.phase.digging
             if digging and not was_digging:
                 self.regolith.start_dig()
-            if self._live is not None:
-                self._finish_dem_digs(self._live, was_digging and not digging)
+                if self._dem_digs is not None:
+                    self._dem_digs.dig_started()
+            if self._dem_digs is not None:
+                self.finished_dem_digs += (
+                    (self.time, dig) for dig in self._dem_digs.update(was_digging and not digging)
+                )
             self._carve()
-
-    def _finish_dem_digs(self, live: LockstepModel, dig_phase_ended: bool) -> None:
-        """At a carve update with the live DEM: end its dig when the dig phase has just ended
-        (the scoop's content for that dig becomes the DEM's sample, :meth:`_take_dem_sample`),
-        and keep every dig it finished since the last update."""
-        ended = None
-        if dig_phase_ended:
-            # A failure is logged and reported by the model; the forces were applied, and the
-            # scoop keeps the geometric model's content.
-            with contextlib.suppress(DemRunError):
-                ended = live.dig_ended()
-        change = self._take_dem_sample(ended) if ended else None
-        for summary in live.take_finished():
-            if change is not None and ended and summary["start_time"] == ended["start_time"]:
-                summary = {**summary, "regolith": change}
-            self.finished_dem_digs.append((self.time, summary))
-
-    def _take_dem_sample(self, dig: dict[str, Any]) -> dict[str, float] | None:
-        """The scoop's content for the dig that just ended becomes the live DEM's sample, in
-        bulk (:meth:`SimRegolith.set_dig_content`); a column the scoop had to cut deeper for it
-        is lowered in the height map. What changed (m^3 before and after), None without a
-        sample."""
-        sample = dig.get("sample")
-        if not sample:
-            return None
-        change = self.regolith.set_dig_content(float(sample["sample_bulk_volume_m3"]))
-        lowered = change.lowered
-        if lowered:
-            self.carver.lower_cells(lowered.rows, lowered.cols, -lowered.raise_m)
-        return change.record()
 
     def _carve(self) -> None:
         """One carve update: the regolith follows the scoop (it collects in a dig, spills and
