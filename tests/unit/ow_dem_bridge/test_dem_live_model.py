@@ -151,6 +151,13 @@ def test_a_bad_parameter_is_named(params, match):
         LiveConfig.from_dict(params)
 
 
+def test_the_terrain_takes_the_dem_surface_only_when_asked():
+    assert not LiveConfig.from_dict({}).terrain_from_dem
+    assert LiveConfig.from_dict({"terrain_from_dem": True}).terrain_from_dem
+    with pytest.raises(ConfigError, match="terrain_from_dem"):
+        LiveConfig.from_dict({"terrain_from_dem": "sometimes"})
+
+
 def test_without_yade_the_model_names_the_debian_package():
     with pytest.raises(DemRunError, match=r"install the Debian package 'yade'"):
         make_model(LIVE_MODEL_NAME, {"yade": "no-such-yade-launcher"})

@@ -44,7 +44,7 @@ CONFIG = SimConfig(
 #: A short dig (its dig phase lasts ~20 s of sim time).
 DIG = {"x": 1.65, "y": 0.0, "depth": 0.05, "length": 0.05, "ground_position": GROUND}
 #: Coarse grains, 2.5 times the default's.
-COARSE = {"particle_radius": 0.02, "fallback": "none"}
+COARSE = {"particle_radius": 0.02, "fallback": "none", "terrain_from_dem": True}
 
 
 @dataclass

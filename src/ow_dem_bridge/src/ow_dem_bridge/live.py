@@ -245,14 +245,16 @@ class LiveDemModel:
 
         Returns:
             The dig it ended (:meth:`LiveDig.summary`, and ``surface``: what it did to its
-            bed's surface, :class:`~ow_dem_bridge.live_bed.DemSurface`), None when none was
-            under way.
+            bed's surface, :class:`~ow_dem_bridge.live_bed.DemSurface`, for the terrain to
+            take; None unless ``terrain_from_dem``), None when none was under way.
 
         Raises:
             DemRunError: the DEM process failed while counting the sample.
         """
         dig = self.finish_dig()
-        return None if dig is None else {**dig.summary(), "surface": dig.surface}
+        if dig is None:
+            return None
+        return {**dig.summary(), "surface": dig.surface if self.config.terrain_from_dem else None}
 
     def take_finished(self) -> list[dict[str, Any]]:
         """The digs that ended (their sample counted) or failed since the last call, oldest

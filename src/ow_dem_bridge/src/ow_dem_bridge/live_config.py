@@ -59,6 +59,10 @@ class LiveConfig:
         yade: the YADE launcher (a name on PATH or a path).
         fallback: model for everything but the scoop in a dig ("none", "table", "balovnev").
         fallback_params: that model's parameters.
+        terrain_from_dem: when a dig ends, the terrain takes the DEM's surface (docs/dem.md, *The
+            terrain takes the DEM's surface*); off, the terrain keeps the geometric carving (the
+            scoop's content is the DEM's sample either way). Off by default: in the default
+            mission the trench floor it raises blocks the planned approach of the next dig.
     """
 
     particle_radius: float = 0.01
@@ -84,6 +88,7 @@ class LiveConfig:
     yade: str = "yade"
     fallback: str = "table"
     fallback_params: Mapping[str, Any] = field(default_factory=dict)
+    terrain_from_dem: bool = False
 
     @classmethod
     def from_dict(cls, params: Mapping[str, Any]) -> LiveConfig:
@@ -120,6 +125,7 @@ class LiveConfig:
             yade=p.string("yade", d.yade),
             fallback=p.string("fallback", d.fallback, choices=("none", "table", "balovnev")),
             fallback_params=dict(p.section("fallback_params").values),
+            terrain_from_dem=p.boolean("terrain_from_dem", d.terrain_from_dem),
         )
         if config.material and config.material not in MATERIALS:
             p.problem(f"yade/material = {config.material} is not one of {sorted(MATERIALS)}")
