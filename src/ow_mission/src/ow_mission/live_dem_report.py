@@ -251,8 +251,9 @@ def markdown_lines(document: Mapping[str, Any]) -> list[str]:
     lines += [
         "",
         "The sample is the spheres in the scoop when the step's last DEM dig ended "
-        "(`/sim/dem_digs`), out of its bed's spheres; it is the DEM's own count, beside the "
-        "regolith budget's (which follows the height map).",
+        "(`/sim/dem_digs`), out of its bed's spheres: their own volume and mass. When the dig "
+        "phase ended the dig, the scoop's content in the regolith budget became their bulk "
+        "volume (over the bed's solid fraction; the Sample section's figures follow it).",
     ]
     errors = [(d["step"], e) for d in live["digs"] for e in d.get("dem", {}).get("errors", [])]
     lines += [f"- **{step}: the DEM failed**: {error}" for step, error in errors]
