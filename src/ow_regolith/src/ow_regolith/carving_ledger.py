@@ -212,11 +212,7 @@ class CarvingLedger:
             if height >= solid:
                 removed[cell] = Bulk()  # through loose regolith only
                 continue
-            original = float(self._original[cell])
-            bulk = self.column.bulk_between(original - solid, original - height, self.area_m2)
-            self._solid_top[cell] = height
-            self.removed += bulk
-            removed[cell] = bulk
+            removed[cell] = self._cut_column(cell, height)
         return removed
 
     def add_loose(self, cell: Cell, bulk: Bulk) -> None:
@@ -249,12 +245,8 @@ class CarvingLedger:
         if units <= 0:
             return Bulk(), 0.0
         fall = units * UNIT_M3 / self.area_m2
-        original, solid = float(self._original[cell]), float(self._solid_top[cell])
-        bottom = solid - fall
-        bulk = self.column.bulk_between(original - solid, original - bottom, self.area_m2)
-        self._solid_top[cell] = bottom
+        bulk = self._cut_column(cell, float(self._solid_top[cell]) - fall)
         self._heights[cell] -= fall
-        self.removed += bulk
         return bulk, fall
 
     def deposit(self, x: float, y: float, bulk: Bulk, radius_m: float) -> HeightChange:
@@ -366,6 +358,15 @@ class CarvingLedger:
             raised,
         )
 
+    def _cut_column(self, cell: Cell, bottom: float) -> Bulk:
+        """Cut ``cell``'s intact column down to ``bottom`` m (below its solid top): the bulk cut,
+        by layer (:meth:`LayerColumn.bulk_between`), counted in :attr:`removed`."""
+        original, solid = float(self._original[cell]), float(self._solid_top[cell])
+        bulk = self.column.bulk_between(original - solid, original - bottom, self.area_m2)
+        self._solid_top[cell] = bottom
+        self.removed += bulk
+        return bulk
+
     def _fall(self, cell: Cell, target: float) -> Bulk:
         """Lower ``cell`` to ``target`` m (below its height): the loose regolith its height
         shows above the target, then its column down to the target; what it lost."""
@@ -378,10 +379,6 @@ class CarvingLedger:
         else:
             self._loose[cell] = rest
         if target < solid:
-            original = float(self._original[cell])
-            column = self.column.bulk_between(original - solid, original - target, self.area_m2)
-            self._solid_top[cell] = target
-            self.removed += column
-            taken += column
+            taken += self._cut_column(cell, target)
         self._heights[cell] = target
         return taken
