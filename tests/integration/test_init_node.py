@@ -210,3 +210,60 @@ def test_a_node_shuts_down_without_rospys_sleep_in_its_main_thread(ros_master, h
     mission's stack paid it at its stop, then the mission. init_node's handlers and
     signal_shutdown run it on a thread of their own and return once the hooks have run."""
     assert _words(ros_master, SLEEP_CHILD, node, how) == ["True", slept]
+
+
+CLOSED_CHILD = """
+import sys
+import rospy, rospy.core
+from std_msgs.msg import Empty
+from ow_runtime.node import init_node, quiet_at_shutdown, signal_shutdown
+
+init_node("closed_test", disable_signals=True)
+publisher = rospy.Publisher("/closed_test", Empty, queue_size=1)
+callback = lambda: publisher.publish(Empty())
+if sys.argv[1] == "ours":
+    callback = quiet_at_shutdown(callback)
+callback()  # while up: published
+outcome = []
+
+def late(reason):  # after rospy's cleanup closed the topics, before the shutdown flag
+    try:
+        outcome.append("dropped" if callback() is None else "returned")
+    except rospy.ROSException as error:
+        outcome.append(str(error).replace(" ", "_"))
+
+rospy.core.add_preshutdown_hook(late)
+signal_shutdown("test")
+print(*outcome)
+"""
+
+
+@pytest.mark.parametrize(
+    ("how", "outcome"), [("ours", "dropped"), ("bare", "publish()_to_a_closed_topic")]
+)
+def test_a_publish_that_meets_the_shutdown_is_dropped_not_raised(ros_master, how, outcome):
+    """A callback that publishes in the window between rospy closing the node's topics and
+    raising its shutdown flag: bare, its publish raised (rospy logged the traceback as a bad
+    callback, over the node's reason to stop); wrapped, the message is dropped."""
+    assert _words(ros_master, CLOSED_CHILD, how) == [outcome]
+
+
+NOT_SHUT_DOWN_CHILD = """
+import rospy
+from ow_runtime.node import init_node, quiet_at_shutdown
+
+init_node("not_shut_down_test", disable_signals=True)
+
+@quiet_at_shutdown
+def callback():
+    raise rospy.ROSException("another failure")
+
+try:
+    callback()
+except rospy.ROSException as error:
+    print(str(error).replace(" ", "_"))
+"""
+
+
+def test_a_failure_while_the_node_is_up_is_raised(ros_master):
+    assert _words(ros_master, NOT_SHUT_DOWN_CHILD) == ["another_failure"]

@@ -128,11 +128,15 @@ def _new_log_path(log_dir: Path, name: str) -> Path:
     return path
 
 
-def _log_tail(path: Path, lines: int = 40) -> str:
+def log_tail(path: Path, lines: int = 40) -> str:
+    """The last ``lines`` lines of a node's log, after its ``[FATAL]`` lines (a node's reason to
+    stop, which what it logs while stopping may push out of the tail)."""
     try:
-        return "\n".join(path.read_text(errors="replace").splitlines()[-lines:])
+        text = path.read_text(errors="replace").splitlines()
     except OSError:
         return "(no log)"
+    fatal = [line for line in text[:-lines] if line.startswith("[FATAL]")]
+    return "\n".join([*fatal, *text[-lines:]])
 
 
 def _namespaces(name: str) -> list[str]:
@@ -226,7 +230,7 @@ class RosMaster:
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             if self.proc.poll() is not None:
-                tail = _log_tail(self.log_dir / "rosmaster.log")
+                tail = log_tail(self.log_dir / "rosmaster.log")
                 msg = f"rosmaster on port {self.port} exited: {tail}"
                 raise HarnessError(msg)
             with contextlib.suppress(OSError):
@@ -484,7 +488,7 @@ class RosStack:
         deadline = time.monotonic() + timeout_s
         while True:
             if not node.alive():
-                tail = _log_tail(node.log_path)
+                tail = log_tail(node.log_path)
                 msg = f"node {node.name} exited with {node.proc.returncode}:\n{tail}"
                 raise HarnessError(msg)
             # Offered by this node: a node of the same name stopping may still be registered.
@@ -495,7 +499,7 @@ class RosStack:
             if time.monotonic() > deadline:
                 msg = (
                     f"node {node.name} did not offer {sorted(missing)} within {timeout_s} s:\n"
-                    f"{_log_tail(node.log_path)}"
+                    f"{log_tail(node.log_path)}"
                 )
                 raise HarnessError(msg)
             time.sleep(0.05)

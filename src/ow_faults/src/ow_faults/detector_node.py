@@ -36,7 +36,7 @@ from ow_runtime.names import (
     STEREO_LEFT_TRIGGER,
     SYSTEM_FAULTS_STATUS,
 )
-from ow_runtime.node import init_node, spin
+from ow_runtime.node import init_node, quiet_at_shutdown, spin
 from ow_runtime.status_timer import share_status_timer
 from owl_msgs.msg import (
     ArmEndEffectorForceTorque,
@@ -175,6 +175,7 @@ class DetectorNode:
             if getattr(self.detector, rule)(*args):
                 self._publish(self.detector.status, rospy.Time.now() if stamp is None else stamp)
 
+    @quiet_at_shutdown
     def _publish(self, status: FaultStatus, stamp: Any) -> None:
         for publisher, cls, field in self._publishers:
             msg = cls(value=getattr(status, field))

@@ -24,7 +24,7 @@ from ow_power.config import BatteryConfig
 from ow_power.errors import ConfigError, PowerError
 from ow_runtime.latched import latched_publisher
 from ow_runtime.names import EVERY_MESSAGE
-from ow_runtime.node import init_node, spin
+from ow_runtime.node import init_node, quiet_at_shutdown, spin
 from owl_msgs.msg import BatteryRemainingUsefulLife, BatteryStateOfCharge, BatteryTemperature
 
 if TYPE_CHECKING:
@@ -195,6 +195,7 @@ class BatteryNode:
         self._last_power_s = max(self._last_power_s, stamp)
         self._take_power(msg)
 
+    @quiet_at_shutdown
     def _take_power(self, msg: Power) -> None:
         restarts = self._feed.restarts
         try:

@@ -19,7 +19,7 @@ from ow_power.loads import LOADS_TOPIC, SET_LOAD_SERVICE, LoadSum
 from ow_power.model import PowerIntegrator
 from ow_runtime.batched_publisher import BatchedPublisher
 from ow_runtime.names import EVERY_MESSAGE
-from ow_runtime.node import init_node, spin
+from ow_runtime.node import init_node, quiet_at_shutdown, spin
 
 # Every joint state counts (a dropped one stretches the next interval of eq. 4), and a simulation
 # running many times faster than real time outpaces a node that is briefly descheduled. rospy
@@ -100,6 +100,7 @@ class PowerNode:
             return SetLoadResponse(success=False, message=str(exc))
         return SetLoadResponse(success=True, message="")
 
+    @quiet_at_shutdown
     def _on_joint_states(self, msg: JointState) -> None:
         stamp_s, names, velocity, effort = joint_state_fields(msg)
         skipped = self._integrator.skipped_intervals

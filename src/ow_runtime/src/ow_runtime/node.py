@@ -11,12 +11,14 @@ however little it did (a mission stops its stack in two waves; the tests stop on
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
 import os
 import signal
 import sys
 import threading
-from typing import Any, NoReturn
+from collections.abc import Callable
+from typing import Any, NoReturn, TypeVar
 
 import rospy
 import rospy.core
@@ -29,6 +31,29 @@ TCPROS_BACKLOG = 128
 
 #: s of wall time :func:`signal_shutdown` waits for rospy's shutdown hooks.
 HOOKS_TIMEOUT_S = 5.0
+
+_Result = TypeVar("_Result")
+
+
+def quiet_at_shutdown(callback: Callable[..., _Result]) -> Callable[..., _Result | None]:
+    """Wrap a callback that publishes (a subscriber's, a timer's): a publish that meets rospy
+    shutting down is dropped, not raised. rospy closes a node's publishers in a pre-shutdown
+    hook, before it raises its shutdown flag, and its own check of that flag lets a publish
+    in between raise ``publish() to a closed topic``: its receive threads still deliver
+    messages then, and it logged each such callback's traceback as a bad callback (a node
+    stopping on an error, the battery that cannot start, buried its reason under them). Any
+    other ``ROSException``, and any while no shutdown is under way, is raised as before."""
+
+    @functools.wraps(callback)
+    def wrapped(*args: Any, **kwargs: Any) -> _Result | None:
+        try:
+            return callback(*args, **kwargs)
+        except rospy.ROSException:
+            if rospy.core.is_shutdown_requested() or rospy.core.is_shutdown():
+                return None
+            raise
+
+    return wrapped
 
 
 def init_node(name: str, **kwargs: Any) -> None:

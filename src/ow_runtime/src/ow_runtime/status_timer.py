@@ -70,8 +70,13 @@ class StatusHeartbeat(threading.Thread):
             if self._shutdown:
                 return
             event = rospy.timer.TimerEvent(last, last, rospy.Time.from_sec(boundary), now, None)
-            for server in self.servers:
-                server.publish_status_async(event)
+            try:
+                for server in self.servers:
+                    server.publish_status_async(event)
+            except rospy.ROSException:
+                if rospy.core.is_shutdown_requested() or rospy.core.is_shutdown():
+                    return  # the publishers closed before rospy's shutdown flag went up
+                raise
             last = now
             missed = math.floor((now.to_sec() - boundary) / self.period)
             boundary += (max(missed, 0) + 1) * self.period  # the first boundary after now

@@ -27,7 +27,7 @@ from ow_runtime.names import (
     TERRAIN_TOPIC,
     TRAJECTORY_TOPIC,
 )
-from ow_runtime.node import init_node, spin
+from ow_runtime.node import init_node, quiet_at_shutdown, spin
 from ow_viz.config import VizConfig
 from ow_viz.conversions import (
     ground_marker,
@@ -106,6 +106,7 @@ class VizNode:
                 if name in self.model.joint_names:
                     self._q_rest[self.model.index(name)] = position
 
+    @quiet_at_shutdown
     def _on_terrain(self, msg: Any) -> None:
         start = time.perf_counter()
         try:
@@ -120,6 +121,7 @@ class VizNode:
             f"{1e3 * (time.perf_counter() - start):.0f} ms"
         )
 
+    @quiet_at_shutdown
     def _on_trajectory(self, msg: Any) -> None:
         with self._lock:
             q_rest = self._q_rest.copy()
@@ -141,6 +143,7 @@ class VizNode:
         stamp = msg.header.stamp if msg.header.stamp.to_nsec() else rospy.Time.now()
         self._path.publish(path_marker(path, BASE_FRAME, stamp, self.config.path_width_m))
 
+    @quiet_at_shutdown
     def _on_guarded_move(self, msg: Any) -> None:
         if not msg.success:
             return

@@ -29,7 +29,7 @@ from ow_runtime.names import (
     JOINT_STATES,
     PAN_TILT_POSITION,
 )
-from ow_runtime.node import init_node, spin
+from ow_runtime.node import init_node, quiet_at_shutdown, spin
 from owl_msgs.msg import (
     ArmJointAccelerations,
     ArmJointPositions,
@@ -103,6 +103,7 @@ class TelemetryNode:
             tcp_nodelay=True,
         )
 
+    @quiet_at_shutdown
     def _on_joint_state(self, msg: JointState) -> None:
         start = time.thread_time()
         if self._cpu_start is None:
