@@ -179,6 +179,28 @@ def test_a_terminated_script_stops_its_nodes(tmp_path):
             os.killpg(script.pid, signal.SIGKILL)
 
 
+def test_a_killed_node_leaves_nothing_on_the_master_for_later_stacks(ros_master):
+    """A node killed before it could unregister stayed a subscriber of its topics on the
+    master, and every later wait for all of a topic's subscribers to be connected ran out."""
+    stack = RosStack(ros_master)
+    node = stack.start_node(
+        "rosout", "rosout", name="harness_killed", wait_for_services=["/harness_killed/get_loggers"]
+    )
+    _, subscribers, _ = ros_master.call("getSystemState")
+    assert "/harness_killed" in dict(subscribers)["/rosout"]  # this process publishes /rosout
+    node.signal(signal.SIGKILL)
+    node.proc.wait(timeout=10)
+    _, subscribers, _ = ros_master.call("getSystemState")
+    assert "/harness_killed" in dict(subscribers)["/rosout"]  # still listed: it never said
+    assert "/rosout" in ros_master.unconnected(["/rosout"])
+    stack.shutdown()
+    publishers, subscribers, services = ros_master.call("getSystemState")
+    registered = [n for _, nodes in (*publishers, *subscribers, *services) for n in nodes]
+    assert "/harness_killed" not in registered
+    assert ros_master.unconnected(["/rosout"]) == []
+    assert ros_master.forget("/harness_killed") == []  # nothing left: nothing to do
+
+
 def test_a_node_is_ready_only_on_what_it_registered_itself(ros_master):
     """A service another node offers does not make a node ready: a node of the same name that
     is still shutting down must not pass for the new one."""

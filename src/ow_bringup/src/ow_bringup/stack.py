@@ -270,17 +270,18 @@ class RosMaster:
             self._master.shutdown("stopped by the harness")
             self._master = None
 
-    def call(self, method: str, *args: Any) -> Any:
-        """Call a master or parameter-server XML-RPC method; return its value, raise on failure.
+    def call(self, method: str, *args: Any, caller: str = _HARNESS_CALLER) -> Any:
+        """Call a master or parameter-server XML-RPC method as ``caller``; return its value,
+        raise on failure.
 
         An in-process master answers :data:`_DIRECT_METHODS` by a plain call of its handler:
         the same value without the XML both ways, on the threads of one process (the mission
         polls ``getSystemState`` while its nodes start: ~0.2 CPU-s of XML a mission)."""
         if self._master is not None and method in _DIRECT_METHODS:
-            code, status, value = getattr(self._master.handler, method)(_HARNESS_CALLER, *args)
+            code, status, value = getattr(self._master.handler, method)(caller, *args)
         else:
             proxy = xmlrpc.client.ServerProxy(self.uri)
-            code, status, value = getattr(proxy, method)(_HARNESS_CALLER, *args)
+            code, status, value = getattr(proxy, method)(caller, *args)
         if code != 1:
             msg = f"master call {method}{args} failed: {status}"
             raise HarnessError(msg)
@@ -340,6 +341,34 @@ class RosMaster:
                     missing.append(name)
                     break
         return missing
+
+    def forget(self, node: str) -> list[str]:
+        """Unregister whatever node ``node`` (e.g. ``/sim``; its process gone) left on the
+        master, as ``rosnode cleanup`` does; the names unregistered. A node killed before it
+        could unregister stays listed as a subscriber, and every later wait for the topic's
+        publishers to connect to all of its subscribers (:meth:`unconnected`) ran out: a
+        later module's stack waited out its whole deadline (30-60 s) before its first step."""
+        publishers, subscribers, services = self.call("getSystemState")
+        try:
+            api = str(self.call("lookupNode", node))
+        except HarnessError:
+            return []  # not registered (any more)
+        gone = []
+        for method, entries in (
+            ("unregisterPublisher", publishers),
+            ("unregisterSubscriber", subscribers),
+        ):
+            for topic, nodes in entries:
+                if node in nodes:
+                    self.call(method, topic, api, caller=node)
+                    gone.append(topic)
+        for service, providers in services:
+            if node in providers:
+                with contextlib.suppress(HarnessError):  # gone meanwhile
+                    uri = str(self.call("lookupService", service))
+                    self.call("unregisterService", service, uri, caller=node)
+                    gone.append(service)
+        return gone
 
     def publishers(self, topic: str) -> list[str]:
         """The nodes that have registered a publisher of ``topic``."""
@@ -527,7 +556,8 @@ class RosStack:
             last: names of nodes stopped only once all the others have exited, e.g. a recorder:
                 it then has every message they sent (their connections close after them).
             delete_params: False for a master about to close (a mission's): deleting its ~50
-                parameters one call each took 0.13 s.
+                parameters one call each took 0.13 s. True also unregisters what a killed
+                node left registered (:meth:`RosMaster.forget`).
 
         Each wave is interrupted at once, then waited for (10 s at most, then killed): a node
         takes about a second to shut rospy down, and one after the other that added up.
@@ -542,6 +572,9 @@ class RosStack:
             deadline = time.monotonic() + 10.0
             for node in reversed(wave):
                 _end_process_group(node.proc, max(0.0, deadline - time.monotonic()))
+        # What a node killed (by a test, or after the wait above) left on a master that stays.
+        for node in self.nodes if delete_params else ():
+            self.master.forget(f"/{node.name}")
         self.nodes.clear()
         for key in self.params if delete_params else ():
             self.master.delete_param(key)
