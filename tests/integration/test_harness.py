@@ -145,6 +145,9 @@ def test_service_call_through_the_stack(ros_master):
     finally:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
+        # Killed, it was still a subscriber of /clock on this worker's master.
+        forgotten = ros_master.forget_unreachable()
+    assert forgotten == ["/harness_echo"]
 
 
 SCRIPT = """

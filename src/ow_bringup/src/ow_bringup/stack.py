@@ -19,6 +19,7 @@ import subprocess
 import tempfile
 import threading
 import time
+import urllib.parse
 import xmlrpc.client
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -369,6 +370,30 @@ class RosMaster:
                     self.call("unregisterService", service, uri, caller=node)
                     gone.append(service)
         return gone
+
+    def forget_unreachable(self) -> list[str]:
+        """:meth:`forget` every node registered on the master whose XML-RPC
+        server refuses connections: its process is gone. A test that killed a node it started
+        by itself (a raw ``rospy`` script) left it a subscriber of ``/clock``; a module's
+        stack does this when it ends, so the next module's waits are not on the dead."""
+        publishers, subscribers, services = self.call("getSystemState")
+        names = {n for _, nodes in (*publishers, *subscribers, *services) for n in nodes}
+        forgotten = []
+        for name in sorted(names):
+            try:
+                api = urllib.parse.urlsplit(str(self.call("lookupNode", name)))
+            except HarnessError:
+                continue
+            try:
+                with socket.create_connection((api.hostname, api.port), timeout=1.0):
+                    continue  # it answers: alive
+            except ConnectionRefusedError:
+                pass
+            except OSError:
+                continue  # slow or unreachable for another reason: not known to be dead
+            if self.forget(name):
+                forgotten.append(name)
+        return forgotten
 
     def publishers(self, topic: str) -> list[str]:
         """The nodes that have registered a publisher of ``topic``."""

@@ -106,7 +106,9 @@ def module_stack(master: RosMaster) -> Iterator[RosStack]:
     """A :class:`RosStack` on ``master`` for one test module (what :func:`ros_stack` yields).
 
     On leaving, every node it started is stopped, the subscribers and publishers the test made
-    with :func:`subscribe`, :func:`advertise` and :func:`tf_buffer` are unregistered, and the
+    with :func:`subscribe`, :func:`advertise` and :func:`tf_buffer` are unregistered, whatever
+    a node killed outside the stack left on the master is unregistered
+    (:meth:`~ow_bringup.stack.RosMaster.forget_unreachable`), and the
     master's parameters are put back as they were on entering
     (:meth:`~ow_bringup.stack.RosMaster.restore_params`). Nodes write parameters of their
     own: the ``/faults`` server (dynamic_reconfigure) writes its whole configuration under
@@ -124,6 +126,7 @@ def module_stack(master: RosMaster) -> Iterator[RosStack]:
         _STACKS.remove(stack)
         stack.shutdown()
         unregister_endpoints()
+        master.forget_unreachable()
         master.restore_params(params)
 
 
