@@ -47,6 +47,7 @@ def test_a_step_called_before_the_arm_services_joined_the_lockstep_waits_for_the
     deadline = time.monotonic() + 30.0
     while ros_stack.master.unconnected() and time.monotonic() < deadline:
         time.sleep(0.01)  # the arm services get the state it starts from (as a mission waits)
+    assert ros_stack.master.unconnected() == []
     assert rospy.ServiceProxy("/sim/resume", Trigger)().success
     response = ros_stack.service("/arm/unstow", Unstow)()  # at once, as a mission calls it
     assert response.success, response.message

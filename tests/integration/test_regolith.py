@@ -142,13 +142,13 @@ def run_once(ros_stack) -> dict[str, Any]:
     ingested = Latest(MATERIAL_INGESTED, BulkExcavation)
     try:
         wait_connected(budgets.sub)
-        # The arm services get the state the run starts from (as a mission waits). A bounded
-        # wait: under load a subscriber that missed the master's publisher update never
-        # connects (seen once in CI for /clock); the lockstep, not this wait, makes the run
-        # deterministic, and a node that truly lacks a connection fails the sequence below.
+        # The arm services get the state the run starts from (as a mission waits). A /clock
+        # that never connected (seen in CI) was a killed node of an earlier module still
+        # listed as its subscriber: module stacks forget such nodes now.
         deadline = time.monotonic() + WAIT_S
         while ros_stack.master.unconnected() and time.monotonic() < deadline:
             time.sleep(0.01)
+        assert ros_stack.master.unconnected() == []
         assert ros_stack.service("/sim/resume", Trigger)().success
         empty = budgets.wait_for(lambda m: True, "the latched budget")
         assert units(empty) == dict.fromkeys(ACCOUNTS, 0)
