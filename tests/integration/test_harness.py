@@ -12,12 +12,12 @@ import pytest
 import rospy
 from std_srvs.srv import Empty
 
+from ow_bringup.processes import ignores_signal
 from ow_bringup.stack import (
     NODE_ENVIRONMENT,
     NODE_PYTHON_OPTIMIZE,
     NodeProcess,
     RosMaster,
-    ignores_signal,
     node_command,
 )
 from ow_bringup.testing import HarnessError, RosStack

@@ -1,6 +1,6 @@
 """What the harness reports of a node's log when the node stops or is late."""
 
-from ow_bringup.stack import log_tail
+from ow_bringup.processes import log_tail
 
 
 def test_the_reason_to_stop_leads_however_much_the_node_logged_after(tmp_path):

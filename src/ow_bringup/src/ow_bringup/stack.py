@@ -27,6 +27,13 @@ from pathlib import Path
 from typing import Any
 
 from ow_bringup.errors import HarnessError
+from ow_bringup.processes import (
+    end_process_group,
+    interrupt_process_group,
+    log_tail,
+    new_log_path,
+    stop_process_group,
+)
 
 _HARNESS_CALLER = "/ow_testing_harness"
 
@@ -70,74 +77,6 @@ def node_command(package: str, executable: str) -> tuple[str, ...]:
         if os.path.isfile(path) and os.access(path, os.X_OK):
             return (path,)
     return ("rosrun", package, executable)
-
-
-def _stop_process_group(proc: subprocess.Popen[bytes], timeout_s: float = 10.0) -> None:
-    """SIGINT the process group (ROS nodes shut down cleanly on it), then SIGKILL it."""
-    _interrupt_process_group(proc)
-    _end_process_group(proc, timeout_s)
-
-
-def _interrupt_process_group(proc: subprocess.Popen[bytes]) -> None:
-    """SIGINT the process group of a running process: a ROS node shuts down cleanly on it.
-
-    A process that ignores SIGINT gets SIGTERM as well. A program inherits an ignored SIGINT
-    from a parent started in the background (a shell gives its background jobs SIGINT
-    ignored: ``nohup ... &``, a campaign's worker, some CI runners). rospy's nodes install a
-    handler of their own whatever they inherited, but ``rosmaster`` (and a node still
-    importing) would never see it: the harness waited its full timeout for the master, 10 s
-    of every mission started that way, before killing it."""
-    if proc.poll() is None:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGINT)
-            if ignores_signal(proc.pid, signal.SIGINT):
-                os.killpg(proc.pid, signal.SIGTERM)
-
-
-def ignores_signal(pid: int, signum: int) -> bool:
-    """Whether process ``pid`` ignores signal ``signum`` (``SigIgn`` of ``/proc/<pid>/status``);
-    False for a process that is gone."""
-    try:
-        status = Path(f"/proc/{pid}/status").read_text()
-    except OSError:
-        return False
-    for line in status.splitlines():
-        if line.startswith("SigIgn:"):
-            return bool(int(line.split()[1], 16) >> (signum - 1) & 1)
-    return False
-
-
-def _end_process_group(proc: subprocess.Popen[bytes], timeout_s: float) -> None:
-    """Wait up to ``timeout_s`` for an interrupted process to exit, then SIGKILL its group."""
-    with contextlib.suppress(subprocess.TimeoutExpired):
-        proc.wait(timeout=timeout_s)
-    # Children a node started (in its group) must not outlive it either.
-    with contextlib.suppress(ProcessLookupError, PermissionError):
-        os.killpg(proc.pid, signal.SIGKILL)
-    with contextlib.suppress(subprocess.TimeoutExpired):
-        proc.wait(timeout=timeout_s)
-
-
-def _new_log_path(log_dir: Path, name: str) -> Path:
-    """``<log_dir>/<name>.log``, or ``<name>.<k>.log`` with the first k free: a node started
-    again under its name (by a later test module on the same master, a restart) keeps the log
-    of the one before."""
-    path, k = log_dir / f"{name}.log", 0
-    while path.exists():
-        k += 1
-        path = log_dir / f"{name}.{k}.log"
-    return path
-
-
-def log_tail(path: Path, lines: int = 40) -> str:
-    """The last ``lines`` lines of a node's log, after its ``[FATAL]`` lines (a node's reason to
-    stop, which what it logs while stopping may push out of the tail)."""
-    try:
-        text = path.read_text(errors="replace").splitlines()
-    except OSError:
-        return "(no log)"
-    fatal = [line for line in text[:-lines] if line.startswith("[FATAL]")]
-    return "\n".join([*fatal, *text[-lines:]])
 
 
 def _namespaces(name: str) -> list[str]:
@@ -265,7 +204,7 @@ class RosMaster:
     def stop(self) -> None:
         """Stop the master."""
         if self.proc is not None:
-            _stop_process_group(self.proc)
+            stop_process_group(self.proc)
             self.proc = None
         if self._master is not None:
             self._master.shutdown("stopped by the harness")
@@ -452,7 +391,7 @@ class NodeProcess:
     def stop(self, timeout_s: float = 10.0) -> int | None:
         """Stop the node (SIGINT, SIGTERM if it ignores that, then SIGKILL of its process group);
         return its exit code."""
-        _stop_process_group(self.proc, timeout_s)
+        stop_process_group(self.proc, timeout_s)
         return self.proc.returncode
 
     def signal(self, sig: int) -> None:
@@ -506,7 +445,7 @@ class RosStack:
             full = f"/{node_name}/{key}"
             self.master.set_param(full, value)
             self.params.append(full)
-        log_path = _new_log_path(self.master.log_dir, node_name)
+        log_path = new_log_path(self.master.log_dir, node_name)
         log = log_path.open("wb")
         proc = subprocess.Popen(
             [*node_command(package, executable), f"__name:={node_name}", *args],
@@ -593,10 +532,10 @@ class RosStack:
             [node for node in self.nodes if node.name in later],
         ):
             for node in reversed(wave):
-                _interrupt_process_group(node.proc)
+                interrupt_process_group(node.proc)
             deadline = time.monotonic() + 10.0
             for node in reversed(wave):
-                _end_process_group(node.proc, max(0.0, deadline - time.monotonic()))
+                end_process_group(node.proc, max(0.0, deadline - time.monotonic()))
         # What a node killed (by a test, or after the wait above) left on a master that stays.
         for node in self.nodes if delete_params else ():
             self.master.forget(f"/{node.name}")
@@ -646,34 +585,6 @@ def _exit_on_termination() -> Iterator[None]:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-
-
-def peak_memory_mb(roots: Iterable[int]) -> float:
-    """MB, sum of the peak resident memory (VmHWM) of this process and of every process in the
-    trees under ``roots`` (pids; a node started by rosrun is a process tree)."""
-    pids = [os.getpid()]
-    for root in roots:
-        pids += _process_tree(root)
-    total_kb = 0
-    for pid in pids:
-        try:
-            for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-                if line.startswith("VmHWM:"):
-                    total_kb += int(line.split()[1])
-        except OSError:
-            continue
-    return total_kb / 1024.0
-
-
-def _process_tree(pid: int) -> list[int]:
-    out = [pid]
-    try:
-        children = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
-    except OSError:
-        return out
-    for child in children:
-        out += _process_tree(int(child))
-    return out
 
 
 def call_with_timeout(

@@ -23,12 +23,12 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 import ow_msgs.srv
+from ow_bringup.processes import peak_memory_mb
 from ow_bringup.stack import (
     HarnessError,
     NodeProcess,
     RosStack,
     call_with_timeout,
-    peak_memory_mb,
     private_master,
     wait_until,
 )
