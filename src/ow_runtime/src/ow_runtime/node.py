@@ -49,7 +49,7 @@ def quiet_at_shutdown(callback: Callable[..., _Result]) -> Callable[..., _Result
         try:
             return callback(*args, **kwargs)
         except rospy.ROSException:
-            if rospy.core.is_shutdown_requested() or rospy.core.is_shutdown():
+            if rospy.core.is_shutdown_requested():  # set before the flag, never cleared
                 return None
             raise
 

@@ -74,7 +74,7 @@ class StatusHeartbeat(threading.Thread):
                 for server in self.servers:
                     server.publish_status_async(event)
             except rospy.ROSException:
-                if rospy.core.is_shutdown_requested() or rospy.core.is_shutdown():
+                if rospy.core.is_shutdown_requested():
                     return  # the publishers closed before rospy's shutdown flag went up
                 raise
             last = now
