@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 import rospy
+from std_msgs.msg import String
 from std_srvs.srv import Empty
 
 from ow_bringup.processes import ignores_signal
@@ -202,6 +203,35 @@ def test_a_killed_node_leaves_nothing_on_the_master_for_later_stacks(ros_master)
     assert "/harness_killed" not in registered
     assert ros_master.unconnected(["/rosout"]) == []
     assert ros_master.forget("/harness_killed") == []  # nothing left: nothing to do
+
+
+def test_a_module_leaves_no_subscription_of_this_process_to_the_next(ros_master):
+    """A ``dynamic_reconfigure`` client a test left open kept this process subscribed to a PID
+    server's topics; the next module's simulation had a subscriber it had not connected to
+    while it started, and a wait for every connection saw it unconnected. A module's stack
+    unregisters whatever this process registered during the module, and nothing it had
+    before."""
+    from dynamic_reconfigure.client import Client
+
+    from ow_bringup.testing import module_stack, registered_topics
+
+    before = registered_topics()
+    me = rospy.get_name()
+    with module_stack(ros_master) as stack:
+        stack.start_node("ow_faults", "faults", wait_for_services=["/faults/set_parameters"])
+        client = Client("/faults", timeout=30)  # left open, as test_faults_injection did
+        assert client.get_configuration(timeout=30)["ant_pan_joint_locked_failure"] is False
+        assert "/faults/parameter_updates" in ros_master.subscribed_by(me)
+        status = rospy.Subscriber("/harness_status", String, lambda _: None)  # never unregistered
+        assert ("sub", status.resolved_name) in registered_topics()
+    assert registered_topics() == before
+    subscribed = ros_master.subscribed_by(me)
+    assert not subscribed & {"/faults/parameter_updates", "/faults/parameter_descriptions"}
+    assert "/harness_status" not in subscribed
+    again = rospy.Subscriber("/harness_status", String, lambda _: None)  # a new one works
+    assert "/harness_status" in ros_master.subscribed_by(me)
+    again.unregister()
+    assert registered_topics() == before
 
 
 def test_a_node_is_ready_only_on_what_it_registered_itself(ros_master):

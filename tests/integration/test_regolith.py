@@ -22,6 +22,7 @@ from geometry_msgs.msg import Point
 from std_srvs.srv import Trigger
 
 import owl_msgs.msg as owl
+from ow_bringup.stack import wait_until
 from ow_bringup.testing import subscribe, wait_connected, wait_for_server
 from ow_description.description import DEFAULT_GROUND_Z
 from ow_lander.msg import DockIngestSampleAction, DockIngestSampleGoal
@@ -145,10 +146,9 @@ def run_once(ros_stack) -> dict[str, Any]:
         # The arm services get the state the run starts from (as a mission waits). A /clock
         # that never connected (seen in CI) was a killed node of an earlier module still
         # listed as its subscriber: module stacks forget such nodes now.
-        deadline = time.monotonic() + WAIT_S
-        while ros_stack.master.unconnected() and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert ros_stack.master.unconnected() == []
+        arm_topics = ros_stack.master.subscribed_by("/arm_services")
+        if not wait_until(lambda: not ros_stack.master.unconnected(arm_topics), WAIT_S):
+            raise AssertionError(f"unconnected: {ros_stack.master.unconnected(arm_topics)}")
         assert ros_stack.service("/sim/resume", Trigger)().success
         empty = budgets.wait_for(lambda m: True, "the latched budget")
         assert units(empty) == dict.fromkeys(ACCOUNTS, 0)

@@ -339,6 +339,11 @@ class RosMaster:
         publishers, _, _ = self.call("getSystemState")
         return next((list(nodes) for name, nodes in publishers if name == topic), [])
 
+    def subscribed_by(self, node: str) -> set[str]:
+        """The topics node ``node`` (e.g. ``/arm_services``) has registered a subscriber of."""
+        _, subscribers, _ = self.call("getSystemState")
+        return {name for name, nodes in subscribers if node in nodes}
+
     def offered_by(self, node: str) -> tuple[set[str], set[str]]:
         """(services, published topics) that node ``node`` (e.g. ``/sim``) has registered."""
         publishers, _, services = self.call("getSystemState")

@@ -58,6 +58,8 @@ from ow_bringup.testing_node import (
     advertise,
     join_as_test_node,
     leave_as_test_node,
+    registered_topics,
+    release_topics,
     set_terrain,
     subscribe,
     tf_buffer,
@@ -106,7 +108,9 @@ def module_stack(master: RosMaster) -> Iterator[RosStack]:
     """A :class:`RosStack` on ``master`` for one test module (what :func:`ros_stack` yields).
 
     On leaving, every node it started is stopped, the subscribers and publishers the test made
-    with :func:`subscribe`, :func:`advertise` and :func:`tf_buffer` are unregistered, whatever
+    with :func:`subscribe`, :func:`advertise` and :func:`tf_buffer` are unregistered, and so is
+    every other publisher and subscriber this process made meanwhile (:func:`release_topics`:
+    a ``dynamic_reconfigure`` or action client's), whatever
     a node killed outside the stack left on the master is unregistered
     (:meth:`~ow_bringup.stack.RosMaster.forget_unreachable`), and the
     master's parameters are put back as they were on entering
@@ -118,6 +122,7 @@ def module_stack(master: RosMaster) -> Iterator[RosStack]:
     the camera tests' pan lock set PAN_TILT_EXECUTION_ERROR beside their CAMERA_GOAL_ERROR.
     """
     params = master.param_snapshot()
+    topics = registered_topics()
     stack = RosStack(master)
     _STACKS.append(stack)
     try:
@@ -126,6 +131,7 @@ def module_stack(master: RosMaster) -> Iterator[RosStack]:
         _STACKS.remove(stack)
         stack.shutdown()
         unregister_endpoints()
+        release_topics(topics)
         master.forget_unreachable()
         master.restore_params(params)
 

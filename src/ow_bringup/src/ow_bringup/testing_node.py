@@ -49,6 +49,45 @@ def unregister_endpoints() -> None:
         _PUBLISHERS.pop().unregister()
 
 
+def registered_topics() -> set[tuple[str, str]]:
+    """(``"pub"`` or ``"sub"``, topic) of every publisher and subscriber this process has
+    registered right now, whoever made it (a ``dynamic_reconfigure`` client, an action
+    client, a raw ``rospy.Subscriber``)."""
+    from rospy.topics import get_topic_manager
+
+    manager = get_topic_manager()
+    return {("pub", name) for name, _ in manager.get_publications()} | {
+        ("sub", name) for name, _ in manager.get_subscriptions()
+    }
+
+
+def release_topics(keep: set[tuple[str, str]]) -> list[tuple[str, str]]:
+    """Unregister every publisher and subscriber of this process not in ``keep`` (as
+    :func:`registered_topics` gives them), whatever handles still hold it; what was released.
+
+    A test's ``dynamic_reconfigure`` client left open kept this process subscribed to
+    ``/hand_yaw_position_controller/pid/parameter_updates``: the next module's simulation had a
+    subscriber it had not connected to yet while it started, and a wait for every connection
+    (as a mission waits before its first step) saw it unconnected. Action clients leave their
+    ``status``, ``feedback`` and ``result`` subscriptions the same way. Handles a test still
+    holds must not be unregistered after this (a module's fixtures end before its stack).
+    """
+    from rospy.impl.registration import Registration
+    from rospy.topics import get_topic_manager
+
+    manager = get_topic_manager()
+    released = []
+    for kind, name in sorted(registered_topics() - keep):
+        reg_type = Registration.PUB if kind == "pub" else Registration.SUB
+        impl = manager.get_impl(reg_type, name)
+        if impl is None:
+            continue
+        impl.ref_count = 1  # every handle's share: the next release closes it
+        manager.release_impl(reg_type, name)
+        released.append((kind, name))
+    return released
+
+
 def advertise(topic: str, data_class: type, **kwargs: Any) -> Any:
     """A test's ``rospy.Publisher``, unregistered when the test module's stack ends.
 
