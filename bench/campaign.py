@@ -3,12 +3,15 @@
 Runs ``rosrun ow_mission campaign`` as a user would, on a campaign of N missions (default 4) of
 the default mission without renders (trench location randomized within reach), with 2 workers:
 once on the local engine, once on a local Ray instance (2 CPUs). Prints one JSON line per metric.
+The missions draw no figures (a campaign's default, ``figures: none``); ``--figures inline``
+draws them in every mission, ``--engines local`` leaves Ray out.
 
-    source env.sh && python bench/campaign.py [missions]
+    source env.sh && python bench/campaign.py [missions] [--figures inline] [--engines local]
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -20,7 +23,7 @@ from pathlib import Path
 import yaml
 
 
-def run(engine: str, missions: int, tmp: Path) -> list[dict[str, object]]:
+def run(engine: str, missions: int, tmp: Path, figures: str) -> list[dict[str, object]]:
     path = tmp / f"{engine}.yaml"
     campaign = {
         "name": f"bench {engine}",
@@ -31,6 +34,7 @@ def run(engine: str, missions: int, tmp: Path) -> list[dict[str, object]]:
         "engine": engine,
         "workers": 2,
         "directory": str(tmp / engine),
+        "figures": figures,
     }
     path.write_text(yaml.safe_dump(campaign))
     started = time.monotonic()
@@ -55,13 +59,18 @@ def run(engine: str, missions: int, tmp: Path) -> list[dict[str, object]]:
 
 
 def main() -> int:
-    missions = int(sys.argv[1]) if len(sys.argv) > 1 else 4
+    parser = argparse.ArgumentParser(description="campaign throughput")
+    parser.add_argument("missions", nargs="?", type=int, default=4)
+    parser.add_argument("--figures", choices=("none", "inline"), default="none")
+    parser.add_argument("--engines", default="local,ray", help="comma-separated: local, ray")
+    args = parser.parse_args()
     ok = True
-    for engine in ("local", "ray"):
+    for engine in args.engines.split(","):
         with tempfile.TemporaryDirectory(prefix=f"ow_bench_campaign_{engine}_") as tmp:
-            for line in run(engine, missions, Path(tmp)):
+            for line in run(engine, args.missions, Path(tmp), args.figures):
                 common = {"bench": "campaign", "engine": engine, "workers": 2}
-                print(json.dumps({**common, "missions": missions, **line}), flush=True)
+                common["figures"] = args.figures
+                print(json.dumps({**common, "missions": args.missions, **line}), flush=True)
                 ok = ok and line["metric"] != "error"
     return 0 if ok else 1
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -17,7 +18,8 @@ import yaml
 
 from ow_description.description import ARM_JOINTS
 from ow_mission.fault_schedule import MISSION_STEPS
-from ow_mission.run_compare import differences
+from ow_mission.figures import figures_status, wait_for_figures
+from ow_mission.run_compare import differences, report_numbers
 
 TINY_MISSION = {
     # Through OceanWATERS' actions: the mission's interface: actions is tested here.
@@ -184,6 +186,35 @@ def test_every_mission_without_faults_succeeds_through_the_actions(local):
         z = steps[1]["ground_position"][2]
         assert report["ground_z"] == pytest.approx(z)
         assert z == pytest.approx(-0.155, abs=0.005)  # flat ground
+
+
+def test_a_missions_figures_are_drawn_when_asked_for(local):
+    """A campaign's missions write their report's numbers and draw no figure (campaign
+    ``figures: none``, the default); the command their report names draws them from the bags
+    afterwards, changing no number."""
+    directory, _, _ = local
+    for record in results(directory):
+        assert figures_status(Path(record["run_dir"])) == "not_drawn"
+    run_dir = Path(next(r for r in results(directory) if r["success"])["run_dir"])
+    before = json.loads((run_dir / "report.json").read_text())
+    # Only the workspace capture the mission itself took, no figure drawn from the bags.
+    assert set(before["figures"]) <= {"workspace"} and not list(run_dir.glob("*.png"))
+    assert "`python -m ow_mission.figures <run dir>` draws them" in (
+        (run_dir / "report.md").read_text()
+    )
+    drawn = subprocess.run(
+        [sys.executable, "-m", "ow_mission.figures", str(run_dir)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    assert drawn.returncode == 0, drawn.stdout[-3000:] + drawn.stderr[-3000:]
+    after = wait_for_figures(run_dir, timeout_s=1.0)
+    assert {"power", "guarded_move", "trench_profile"} <= set(after["figures"])
+    for rel in after["figures"].values():
+        assert (run_dir / rel).stat().st_size > 1000
+    assert report_numbers(after) == report_numbers(before)
 
 
 def test_each_mission_file_replays_alone(local):

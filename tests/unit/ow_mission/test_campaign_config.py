@@ -65,6 +65,7 @@ def test_the_shipped_campaign_file_is_valid():
         ({"base": "nowhere.yaml"}, "cannot read base mission .*nowhere.yaml"),
         ({"engine": "ray", "address": "ray://head"}, "campaign/address = 'ray://head' is not"),
         ({"workers": -1}, r"campaign/workers = -1 is outside"),
+        ({"figures": "after_exit"}, "campaign/figures = 'after_exit' is not one of none, inline"),
     ],
 )
 def test_bad_campaign_values_name_the_key(tmp_path, raw, match):
@@ -104,8 +105,10 @@ def test_seeds_come_from_the_campaign_seeds_children(tmp_path):
     assert mission["x"] == expected_x
     assert mission["seed"] == c.mission_seed(2)
     assert mission["output_dir"] == str(tmp_path / "campaign" / "missions" / "002")
-    # Its run is complete when it exits (the shipped base mission says after_exit).
-    assert mission["figures"] == "inline"
+    # Its run is complete when it exits (the shipped base mission says after_exit): the
+    # numbers only, unless the campaign asks for every mission's figures.
+    assert mission["figures"] == "none"
+    assert sample_mission(config(tmp_path, figures="inline"), 2)["figures"] == "inline"
     assert MissionConfig.from_dict(mission).x == expected_x
     assert config(tmp_path, seed=2027, missions=3).mission_seed(2) != c.mission_seed(2)
 

@@ -30,7 +30,7 @@ def test_the_shipped_mission_file_is_valid_and_complete():
         ({"x": float("nan")}, "mission/x must be finite"),
         ({"x": "far"}, "mission/x must be a number"),
         ({"dig": "spiral"}, "mission/dig = 'spiral' is not one of linear, circular"),
-        ({"figures": "later"}, "mission/figures = 'later' is not one of after_exit, inline"),
+        ({"figures": "later"}, "mission/figures = 'later' is not one of after_exit, inline, none"),
         ({"discard": [1, 2]}, "mission/discard must be three numbers"),
         ({"discard": [1, 2, "up"]}, r"mission/discard\[2\] must be a number"),
         ({"seed": -3}, r"mission/seed = -3 is outside \[0, inf\]"),

@@ -16,7 +16,13 @@ import ow_mission.report as report_module
 from ow_description.description import URDF_PATH
 from ow_description.terrain import HeightMap
 from ow_mission.errors import FiguresError, ReplayError
-from ow_mission.figures import figures_status, make_figures, start_figures, wait_for_figures
+from ow_mission.figures import (
+    figures_status,
+    make_figures,
+    start_figures,
+    tell_figures,
+    wait_for_figures,
+)
 from ow_mission.figures import main as figures_main
 from ow_mission.plots import DEPTH_TOLERANCE_M, TrenchGeometry, detector_trace, trench_profile
 from ow_mission.recording import read_recording
@@ -508,6 +514,33 @@ def test_pending_figures_nobody_draws_are_an_error_naming_the_log(tmp_path):
                 wait_for_figures(tmp_path, timeout_s=0.3)
         finally:
             slow.kill()
+
+
+def test_figures_nobody_was_to_draw_are_drawn_when_asked_for(tmp_path):
+    """figures: none (a campaign's missions): the numbers only, no process; the report and a
+    waiter say how to draw the figures, and that command draws them from the bags."""
+    _write_bags(tmp_path / "bags")
+    document = _document()
+    document["config"].update(figures="none", renders=False)  # the command follows renders
+    first = write_run_report(tmp_path, document, renders=False, draw=False)
+    assert first["figures_pending"] is True and first["figures"] == {}
+    assert figures_status(tmp_path) == "not_drawn"
+    command = f"python -m ow_mission.figures {tmp_path}"
+    with pytest.raises(FiguresError, match=rf"figures: none.*`{command}`"):
+        wait_for_figures(tmp_path)
+    assert figures_main(["--wait", str(tmp_path)]) == 1
+    markdown = (tmp_path / "report.md").read_text()
+    assert "`figures: none`" in markdown and "python -m ow_mission.figures <run dir>" in markdown
+    assert "--wait" not in markdown  # nothing is coming by itself
+    told: list[str] = []
+    tell_figures(None, tmp_path, wait=False, say=told.append)
+    assert command in told[-1]
+    assert figures_main([str(tmp_path)]) == 0  # what the report says to run
+    assert figures_status(tmp_path) == "drawn"
+    done = wait_for_figures(tmp_path)
+    assert list(done["figures"]) == ["power", "trench_profile", "guarded_move"]
+    assert _numbers(done) == _numbers(first)
+    assert image_links((tmp_path / "report.md").read_text()) == list(done["figures"].values())
 
 
 def test_a_figures_process_that_fails_says_so_in_the_report(tmp_path, monkeypatch):

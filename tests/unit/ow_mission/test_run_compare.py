@@ -54,3 +54,15 @@ def test_a_different_stamp_or_value_is_a_different_run(tmp_path: Path):
     value = _run(tmp_path / "value", [(1, 0.0, 0), (2, 39.81, 3)])
     assert differences(a, stamp, [TOPIC]) == [f"{TOPIC}: message 1 differs"]
     assert differences(a, value, [TOPIC]) == [f"{TOPIC}: message 1 differs"]
+
+
+def test_a_run_is_the_same_before_and_after_its_figures_are_drawn(tmp_path: Path):
+    """The figures are made from the bags after the run: the numbers they add (the replay's
+    frames) and the wall-clock ones are no part of the run; any other number is."""
+    a = _run(tmp_path / "a", [(1, 0.0, 0)])
+    b = _run(tmp_path / "b", [(1, 0.0, 0)])
+    drawn = {"sim_time_s": 1.0, "replay": {"frames": 40, "fps": 8.0}, "figures_seconds": 3.2}
+    (b / "report.json").write_text(json.dumps(drawn))
+    assert differences(a, b, [TOPIC]) == []
+    (b / "report.json").write_text(json.dumps({**drawn, "sim_time_s": 1.01}))
+    assert differences(a, b, [TOPIC]) == ["report.sim_time_s: 1.0 != 1.01"]

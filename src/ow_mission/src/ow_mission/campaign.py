@@ -41,10 +41,16 @@ RANGE_KEYS = (
 )
 #: Mission keys that may be drawn from a set of choices.
 CHOICE_KEYS = ("dig", "parallel", "terrain", "terrain_forces", "interface")
-#: Mission keys the campaign sets itself for each mission. ``figures`` is always "inline": a
-#: mission's run is complete when its process exits, so a worker (a Ray task) that moves on, or
-#: a node taken down after it, leaves no figures half drawn.
+#: Mission keys the campaign sets itself for each mission. ``figures`` is the campaign's own
+#: ``figures`` (:data:`CAMPAIGN_FIGURES`), never "after_exit": a mission's run is complete when
+#: its process exits, so a worker (a Ray task) that moves on, or a node taken down after it,
+#: leaves no figures half drawn.
 DERIVED_KEYS = ("seed", "name", "output_dir", "figures")
+#: What a campaign's missions do with their figures: "none" (the default) writes the report's
+#: numbers only, and ``python -m ow_mission.figures RUN_DIR`` draws a mission's figures from its
+#: bags when someone wants them; "inline" draws them in every mission (4-5 CPU-s for a small
+#: mission without renders; campaigns ran ~6 % more missions an hour without them).
+CAMPAIGN_FIGURES = ("none", "inline")
 #: Decimal places kept of a drawn number (mission files stay readable; 1 um).
 DIGITS = 6
 #: Campaign engines.
@@ -120,6 +126,7 @@ class CampaignConfig:
         address: Ray address: "local" (start one here), "auto", "ray://host:10001", "host:port".
         cpus_per_mission: Ray CPUs one mission reserves.
         timeout_s: s of wall time one mission may take before it is stopped and failed.
+        figures: each mission's ``figures`` (:data:`CAMPAIGN_FIGURES`).
         base_mission: the base file's mapping with the overrides on top.
         faults: candidate fault-schedule entries, each added to a mission with its probability.
     """
@@ -136,6 +143,7 @@ class CampaignConfig:
     address: str = "local"
     cpus_per_mission: float = 1.0
     timeout_s: float = 1800.0
+    figures: str = "none"
     base_mission: dict[str, Any] = field(default_factory=dict)
     faults: tuple[RandomFault, ...] = ()
 
@@ -187,6 +195,7 @@ class CampaignConfig:
             address=p.string("address", d.address),
             cpus_per_mission=p.number("cpus_per_mission", 1.0, low=0.0, low_inclusive=False),
             timeout_s=p.number("timeout_s", d.timeout_s, low=1.0, high=86400.0, unit="s"),
+            figures=p.string("figures", d.figures, choices=CAMPAIGN_FIGURES),
             base_mission=base_mission,
         )
         if config.engine == "ray":
@@ -254,7 +263,7 @@ def sample_mission(config: CampaignConfig, k: int) -> dict[str, Any]:
         "seed": config.mission_seed(k),
         "name": f"{config.name} #{mission_label(k, config.missions)}",
         "output_dir": str(config.mission_dir(k)),
-        "figures": "inline",
+        "figures": config.figures,
     }
     try:
         MissionConfig.from_dict(mission)

@@ -27,6 +27,7 @@ from typing import Any, TypeAlias
 
 from ow_bringup.stack import NODE_ENVIRONMENT
 from ow_mission.errors import FiguresError
+from ow_mission.report_files import left_to_draw
 
 #: The figures' process output, in the run directory.
 FIGURES_LOG = "figures.log"
@@ -85,9 +86,11 @@ def _document(run_dir: Path) -> dict[str, Any]:
 
 def figures_status(run_dir: Path) -> str:
     """Where the figures of ``run_dir`` are: "drawn" (or not pending: ``figures: inline``),
-    "drawing" (their process runs) or "lost" (pending, and no process is making them)."""
+    "drawing" (their process runs), "not_drawn" (``figures: none``: nobody was to draw them)
+    or "lost" (pending, and the process that was to draw them is gone)."""
     run_dir = Path(run_dir)
-    if not _document(run_dir).get("figures_pending"):
+    document = _document(run_dir)
+    if not document.get("figures_pending"):
         return "drawn"
     try:
         pid = int((run_dir / PID_FILE).read_text())
@@ -96,7 +99,9 @@ def figures_status(run_dir: Path) -> str:
     if pid is not None and _running(pid):
         return "drawing"
     # It may have finished between the two reads.
-    return "lost" if _document(run_dir).get("figures_pending") else "drawn"
+    if not _document(run_dir).get("figures_pending"):
+        return "drawn"
+    return "not_drawn" if pid is None and left_to_draw(document) else "lost"
 
 
 def wait_for_figures(run_dir: Path, timeout_s: float = 600.0) -> dict[str, Any]:
@@ -111,7 +116,8 @@ def wait_for_figures(run_dir: Path, timeout_s: float = 600.0) -> dict[str, Any]:
 
     Raises:
         FiguresError: the figures' process ended without writing them, or did not finish in
-            time; the message says where its output is.
+            time (the message says where its output is), or nobody was to draw them
+            (``figures: none``: the message says how to).
     """
     run_dir = Path(run_dir)
     deadline = time.monotonic() + timeout_s
@@ -119,6 +125,12 @@ def wait_for_figures(run_dir: Path, timeout_s: float = 600.0) -> dict[str, Any]:
         status = figures_status(run_dir)
         if status == "drawn":
             return _document(run_dir)
+        if status == "not_drawn":
+            msg = (
+                f"the figures of {run_dir} were not drawn (its mission said figures: none); "
+                f"draw them from its bags with `python -m ow_mission.figures {run_dir}`"
+            )
+            raise FiguresError(msg)
         if status == "lost":
             msg = (
                 f"the figures of {run_dir} are pending but no process is making them; its "
@@ -143,6 +155,15 @@ def tell_figures(
     what it drew and what it could not."""
     say(f"[mission] report: {Path(run_dir) / 'report.md'}")
     if proc is None:
+        try:
+            status = figures_status(Path(run_dir))
+        except (OSError, ValueError):  # no report.json to tell of
+            return
+        if status == "not_drawn":
+            say(
+                "[mission] figures: not drawn (figures: none); "
+                f"`python -m ow_mission.figures {run_dir}` draws them from the bags"
+            )
         return
     log = Path(run_dir) / FIGURES_LOG
     if not wait:
@@ -191,14 +212,15 @@ def make_figures(run_dir: Path, renders: bool) -> int:
 
 USAGE = (
     "usage: python -m ow_mission.figures --wait RUN_DIR           (wait for a run's figures)\n"
-    "       python -m ow_mission.figures RUN_DIR [--no-renders]   (draw its pending figures)"
+    "       python -m ow_mission.figures RUN_DIR [--no-renders]   (draw its pending figures;\n"
+    "                                      the stills and replay too if its mission renders)"
 )
 
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m ow_mission.figures --wait RUN_DIR``: wait for a run's figures (1 when they
     will not come); ``python -m ow_mission.figures RUN_DIR [--no-renders]``: draw them (what
-    :func:`start_figures` runs)."""
+    :func:`start_figures` runs; the stills and the replay only if the run's mission renders)."""
     args = list(sys.argv[1:] if argv is None else argv)
     paths = [a for a in args if not a.startswith("--")]
     if len(paths) != 1 or set(args) - {*paths, "--no-renders", "--wait"}:
@@ -212,7 +234,13 @@ def main(argv: list[str] | None = None) -> int:
             return 1
         print(json.dumps({"figures": done["figures"], "notes": done["figure_notes"]}, indent=1))
         return 0
-    return make_figures(Path(paths[0]), renders="--no-renders" not in args)
+    run_dir = Path(paths[0])
+    try:
+        renders = bool((_document(run_dir).get("config") or {}).get("renders", True))
+    except (OSError, ValueError) as exc:
+        print(f"[figures] cannot read {run_dir / 'report.json'}: {exc}", file=sys.stderr)
+        return 1
+    return make_figures(run_dir, renders=renders and "--no-renders" not in args)
 
 
 if __name__ == "__main__":

@@ -343,7 +343,8 @@ def write_report(
     """Write ``report.json`` and ``report.md`` into the run directory, made from the run's bags
     after the run (:func:`ow_mission.report.write_run_report`; ``prefetch``: the files closed
     before the stack stopped, read while it stopped), with the figures (``figures: inline``)
-    or without them, their process started (``after_exit``: the numbers are the same).
+    or without them (the numbers are the same), their process started (``after_exit``) or
+    left for whoever wants them (``none``: ``python -m ow_mission.figures RUN_DIR``).
 
     The steps' energies and peaks become the bags' (the numbers the power plot labels), so the
     table printed afterwards (:meth:`MissionReport.table`) agrees with ``report.md``.
@@ -355,19 +356,18 @@ def write_report(
 
     document = report.to_json()
     document["config"]["terrain_spec"] = report.config.terrain_spec
-    after_exit = report.config.figures == "after_exit"
     written = write_run_report(
         report.run_dir,
         document,
         renders=report.config.renders,
         prefetch=prefetch,
-        draw=not after_exit,
+        draw=report.config.figures == "inline",
     )
     for step, row in zip(report.steps, written["steps"], strict=True):
         step.mechanical_energy_j = float(row["mechanical_energy_j"])
         step.energy_wh = float(row["energy_wh"])
         step.peak_power_w = float(row["peak_power_w"])
-    if not after_exit:
+    if report.config.figures != "after_exit":
         return None
     return start_figures(report.run_dir, report.config.renders)
 

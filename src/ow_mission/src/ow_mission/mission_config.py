@@ -67,6 +67,10 @@ USAGE = (
 )
 
 
+#: The choices of a mission's ``figures`` key (:class:`MissionConfig`).
+FIGURES_MODES = ("after_exit", "inline", "none")
+
+
 @dataclass(frozen=True)
 class MissionConfig:
     """One run of the paper's digging procedure (section 3). Units: m, s; frame base_link.
@@ -100,7 +104,9 @@ class MissionConfig:
         renders: take headless renders of the arm at key moments.
         figures: "after_exit": the report's numbers are written before the mission exits and
             its figures by a process of their own afterwards (:mod:`ow_mission.figures`);
-            "inline": all of the report before it exits.
+            "inline": all of the report before it exits; "none": the numbers only, the
+            figures drawn when asked for (``python -m ow_mission.figures RUN_DIR``), as a
+            campaign's missions do.
         node_params: extra private parameters per node name (sim, arm_services, power, record).
         interface: "services" (the paper's) or "actions" (OceanWATERS' owl_msgs actions,
             :mod:`ow_mission.action_steps`): how the steps are called.
@@ -211,7 +217,7 @@ class MissionConfig:
             ),
             output_dir=p.string("output_dir", d.output_dir),
             renders=p.boolean("renders", d.renders),
-            figures=p.string("figures", d.figures, choices=("after_exit", "inline")),
+            figures=p.string("figures", d.figures, choices=FIGURES_MODES),
             node_params={str(k): dict(v) for k, v in node_params.items()},
             interface=p.string("interface", d.interface, choices=("services", "actions")),
             faults=parse_schedule(p.raw("faults", []), MISSION_STEPS, p.problem),

@@ -16,6 +16,12 @@ from typing import Any
 import numpy as np
 
 
+def left_to_draw(document: Mapping[str, Any]) -> bool:
+    """Whether the mission of ``document`` left its figures to whoever wants them
+    (``figures: none``)."""
+    return bool((document.get("config") or {}).get("figures") == "none")
+
+
 @dataclass
 class Figures:
     """What the report links, by role: file names relative to the run directory, and notes for
@@ -124,7 +130,14 @@ def markdown(run_dir: Path, document: Mapping[str, Any], figures: Figures) -> st
         lines += [f"![{role}]({rel})", "", f"*{figures.captions.get(role, rel)}*", ""]
     for note in figures.notes.values():
         lines += [f"> {note}", ""]
-    if document.get("figures_pending"):
+    if document.get("figures_pending") and left_to_draw(document):
+        lines += [
+            "> The figures were not drawn (the mission said `figures: none`): "
+            "`python -m ow_mission.figures <run dir>` draws them from the bags and rewrites "
+            "this report with them.",
+            "",
+        ]
+    elif document.get("figures_pending"):
         lines += [
             "> The figures are being made from the bags by a process of their own, started as "
             "the mission exited (its output: `figures.log`); it rewrites this report with them. "

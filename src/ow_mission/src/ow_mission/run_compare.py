@@ -47,6 +47,10 @@ WALL_CLOCK_KEYS = frozenset(
         "seconds_to_make",
     }
 )
+#: report.json entries the figures add: made from the bags after the run, so a run whose
+#: figures are not drawn (``figures: none``, or still being drawn) is the same run as one whose
+#: figures are.
+FIGURE_KEYS = frozenset({"replay"})
 #: Topics compared by default: the simulation's streams (the carved terrains too), power, the
 #: battery and the fault telemetry (the detector's status, stamped with the sim time of what
 #: changed it; the flags).
@@ -70,11 +74,12 @@ TOPICS = (
 
 def report_numbers(report: Any, path: str = "") -> dict[str, float]:
     """Every number of a ``report.json`` (loaded) by its path (``.steps[2].sim_end_s``), but
-    the wall-clock ones and the mission's configuration (where the run was written)."""
+    the wall-clock ones, the figures' own (:data:`FIGURE_KEYS`) and the mission's
+    configuration (where the run was written)."""
     if isinstance(report, dict):
         out: dict[str, float] = {}
         for key, item in report.items():
-            if key not in WALL_CLOCK_KEYS and key != "config":
+            if key not in WALL_CLOCK_KEYS and key not in FIGURE_KEYS and key != "config":
                 out.update(report_numbers(item, f"{path}.{key}"))
         return out
     if isinstance(report, list):
