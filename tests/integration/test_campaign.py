@@ -149,6 +149,8 @@ def test_local_campaign_report(local):
         assert Path(failed["command"].split()[-1]).is_file()
     text = (directory / "report.md").read_text()
     assert "2 of 2 missions done" in text
+    for failed in report["failed"]:  # how to look at a failure: its figures, drawn on demand
+        assert f"`python -m ow_mission.figures {failed['run_dir']}`" in text
     assert "| stow |" in text or not done
     for figure in report["figures"]:
         assert (directory / figure).stat().st_size > 1000

@@ -47,6 +47,7 @@ def records():
         "failed_step": "stow",
         "error": "step stow (/arm/stow) failed: no plan",
         "command": "rosrun ow_mission mission /c/missions/003/mission.yaml",
+        "run_dir": "/c/missions/003/2026-11-30_01-00-00",
         "steps": [step("dig", 99.0, [2.0, 2.0, 2.0]), step("stow", 50.0, None, success=False)],
     }
     out[3]["steps"][0]["success"] = True
@@ -116,6 +117,7 @@ def test_campaign_summary_by_hand():
             "failed_step": "stow",
             "error": "step stow (/arm/stow) failed: no plan",
             "command": "rosrun ow_mission mission /c/missions/003/mission.yaml",
+            "run_dir": "/c/missions/003/2026-11-30_01-00-00",
         }
     ]
 
@@ -129,6 +131,7 @@ def test_report_files(tmp_path):
     assert "| dig | 4 |" in text
     assert "| 3 | 103 | stow | step stow (/arm/stow) failed: no plan | " in text
     assert "`rosrun ow_mission mission /c/missions/003/mission.yaml`" in text
+    assert "- mission 3: `python -m ow_mission.figures /c/missions/003/2026-11-30_01-00-00`" in text
     assert "2 of 3 missions ingested a sample. Volume ingested from the dock: mean 0.000333 m³" in (
         text
     )

@@ -180,6 +180,7 @@ def summarise(records: Mapping[int, Mapping[str, Any]], missions: int) -> dict[s
             "failed_step": r.get("failed_step"),
             "error": r.get("error", ""),
             "command": r["command"],
+            "run_dir": r.get("run_dir"),
         }
         for r in ordered
         if not r.get("success")
@@ -292,6 +293,18 @@ def markdown(name: str, summary: Mapping[str, Any], figures: Sequence[str]) -> s
             f"{str(f['error']).replace('|', '/')[:200]} | `{f['command']}` |"
             for f in summary["failed"]
         ]
+        drawable = [f for f in summary["failed"] if f.get("run_dir")]
+        if drawable:
+            lines += [
+                "",
+                "Their figures, drawn from their bags when wanted (a campaign's missions draw "
+                "none unless it says `figures: inline`):",
+                "",
+                *(
+                    f"- mission {f['index']}: `python -m ow_mission.figures {f['run_dir']}`"
+                    for f in drawable
+                ),
+            ]
     else:
         lines.append("None.")
     lines += ["", "## Figures", ""]
