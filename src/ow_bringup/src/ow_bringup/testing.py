@@ -107,13 +107,12 @@ def ros_master(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RosMaster]:
 def module_stack(master: RosMaster) -> Iterator[RosStack]:
     """A :class:`RosStack` on ``master`` for one test module (what :func:`ros_stack` yields).
 
-    On leaving, every node it started is stopped, the subscribers and publishers the test made
+    On leaving, every node it started is stopped; the subscribers and publishers the test made
     with :func:`subscribe`, :func:`advertise` and :func:`tf_buffer` are unregistered, and so is
     every other publisher and subscriber this process made meanwhile (:func:`release_topics`:
-    a ``dynamic_reconfigure`` or action client's), whatever
-    a node killed outside the stack left on the master is unregistered
-    (:meth:`~ow_bringup.stack.RosMaster.forget_unreachable`), and the
-    master's parameters are put back as they were on entering
+    a ``dynamic_reconfigure`` or action client's); whatever a node killed outside the stack
+    left on the master is unregistered (:meth:`~ow_bringup.stack.RosMaster.forget_unreachable`);
+    and the master's parameters are put back as they were on entering
     (:meth:`~ow_bringup.stack.RosMaster.restore_params`). Nodes write parameters of their
     own: the ``/faults`` server (dynamic_reconfigure) writes its whole configuration under
     ``/faults`` at start and at every change, and the ``faults`` node reads its launch-time

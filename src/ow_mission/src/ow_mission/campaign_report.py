@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from ow_mission.report_files import draw_command
+
 #: s, least margin of the duration rule; m, least position tolerance per coordinate.
 MIN_DURATION_MARGIN_S = 10.0
 MIN_POSITION_TOLERANCE_M = 0.01
@@ -300,10 +302,7 @@ def markdown(name: str, summary: Mapping[str, Any], figures: Sequence[str]) -> s
                 "Their figures, drawn from their bags when wanted (a campaign's missions draw "
                 "none unless it says `figures: inline`):",
                 "",
-                *(
-                    f"- mission {f['index']}: `python -m ow_mission.figures {f['run_dir']}`"
-                    for f in drawable
-                ),
+                *(f"- mission {f['index']}: `{draw_command(f['run_dir'])}`" for f in drawable),
             ]
     else:
         lines.append("None.")

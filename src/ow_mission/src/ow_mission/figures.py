@@ -27,7 +27,7 @@ from typing import Any, TypeAlias
 
 from ow_bringup.stack import NODE_ENVIRONMENT
 from ow_mission.errors import FiguresError
-from ow_mission.report_files import left_to_draw
+from ow_mission.report_files import draw_command, left_to_draw
 
 #: The figures' process output, in the run directory.
 FIGURES_LOG = "figures.log"
@@ -128,7 +128,7 @@ def wait_for_figures(run_dir: Path, timeout_s: float = 600.0) -> dict[str, Any]:
         if status == "not_drawn":
             msg = (
                 f"the figures of {run_dir} were not drawn (its mission said figures: none); "
-                f"draw them from its bags with `python -m ow_mission.figures {run_dir}`"
+                f"draw them from its bags with `{draw_command(run_dir)}`"
             )
             raise FiguresError(msg)
         if status == "lost":
@@ -162,7 +162,7 @@ def tell_figures(
         if status == "not_drawn":
             say(
                 "[mission] figures: not drawn (figures: none); "
-                f"`python -m ow_mission.figures {run_dir}` draws them from the bags"
+                f"`{draw_command(run_dir)}` draws them from the bags"
             )
         return
     log = Path(run_dir) / FIGURES_LOG

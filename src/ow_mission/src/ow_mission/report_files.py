@@ -16,6 +16,11 @@ from typing import Any
 import numpy as np
 
 
+def draw_command(run_dir: Path | str) -> str:
+    """The command that draws the figures of run ``run_dir`` from its bags."""
+    return f"python -m ow_mission.figures {run_dir}"
+
+
 def left_to_draw(document: Mapping[str, Any]) -> bool:
     """Whether the mission of ``document`` left its figures to whoever wants them
     (``figures: none``)."""
@@ -133,7 +138,7 @@ def markdown(run_dir: Path, document: Mapping[str, Any], figures: Figures) -> st
     if document.get("figures_pending") and left_to_draw(document):
         lines += [
             "> The figures were not drawn (the mission said `figures: none`): "
-            "`python -m ow_mission.figures <run dir>` draws them from the bags and rewrites "
+            f"`{draw_command('<run dir>')}` draws them from the bags and rewrites "
             "this report with them.",
             "",
         ]
